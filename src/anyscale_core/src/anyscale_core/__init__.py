@@ -1,0 +1,1 @@
+"""AnyScale decision side: pure algorithms (no ROS import) and thin rospy wrappers."""

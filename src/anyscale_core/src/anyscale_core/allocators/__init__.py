@@ -1,0 +1,22 @@
+"""Allocators behind one interface: decide(ch, assign, state, ctx) -> Decision."""
+from .base import AllocationContext, Decision, Move, candidate_scales
+from .optimal import OptimalAllocator
+from .paper import PaperAllocator
+
+ALLOCATORS = {
+    PaperAllocator.name: PaperAllocator,
+    OptimalAllocator.name: OptimalAllocator,
+}
+
+
+def make_allocator(name: str):
+    """The allocator called `name`; ValueError naming the known ones otherwise."""
+    try:
+        return ALLOCATORS[name]()
+    except KeyError:
+        raise ValueError(f"unknown allocator '{name}' (known: {', '.join(sorted(ALLOCATORS))})") \
+            from None
+
+
+__all__ = ["ALLOCATORS", "AllocationContext", "Decision", "Move", "OptimalAllocator",
+           "PaperAllocator", "candidate_scales", "make_allocator"]

@@ -1,0 +1,63 @@
+"""What every allocator takes and returns, and the scales a node may move to right now."""
+from dataclasses import dataclass, field
+from typing import FrozenSet, List, Mapping
+
+import numpy as np
+
+from ..characterisation import Characterisation
+from ..constraints import CPU_CAPACITY_PERCENT, DynamicState
+
+
+@dataclass(frozen=True)
+class AllocationContext:
+    """Explicit decision state, so allocators are pure functions of their inputs."""
+    now: float = 0.0                               # s
+    hysteresis_s: float = 0.0                      # the paper's T
+    migrated_back_at: Mapping[int, float] = field(default_factory=dict)  # node -> time (s)
+    violating: FrozenSet[int] = frozenset()        # nodes whose connections break freq/tolerance
+
+    def held_on_master(self, i: int) -> bool:
+        """Node i may not leave the master: it violates, or came back less than T ago."""
+        if i in self.violating:
+            return True
+        t = self.migrated_back_at.get(i)
+        return t is not None and self.now - t < self.hysteresis_s
+
+
+@dataclass(frozen=True)
+class Move:
+    node: int
+    source: int
+    target: int
+    reason: str
+
+
+@dataclass(frozen=True)
+class Decision:
+    assign: np.ndarray             # (N,) scale index per node
+    moves: List[Move]              # what changed from the mapping the allocator was given
+
+
+def candidate_scales(ch: Characterisation, state: DynamicState,
+                     ctx: AllocationContext) -> np.ndarray:
+    """(N, K) bool: where each node could run now, judged node by node (static allowance, link
+    up, held nodes on the master, room for the node alone). Combined limits are the caller's."""
+    mask = ch.allowed & state.up_vector(ch)[None, :]
+    load = state.load_vector(ch)
+    fits_alone = (ch.cpu + load[None, :] <= CPU_CAPACITY_PERCENT + 1e-9)
+    fits_alone[:, ch.master] = True
+    mask &= fits_alone & (ch.memory[:, None] <= ch.scale_memory[None, :])
+    for i in range(ch.num_nodes):
+        if ch.pinned[i]:
+            mask[i] = ch.allowed[i]
+        elif ctx.held_on_master(i):
+            mask[i] = False
+            mask[i, ch.master] = True
+    return mask
+
+
+def moves_between(ch: Characterisation, before: np.ndarray, after: np.ndarray,
+                  reason_out: str, reason_back: str) -> List[Move]:
+    changed = np.flatnonzero(before != after)
+    return [Move(int(i), int(before[i]), int(after[i]),
+                 reason_back if after[i] == ch.master else reason_out) for i in changed]

@@ -93,8 +93,8 @@ class SystemModel:
     nodes: Tuple[Node, ...]
     connections: Tuple[Connection, ...]
     source: str = "<model>"
-    _scale_index: Dict[str, Scale] = field(default_factory=dict, compare=False, repr=False)
-    _node_index: Dict[str, Node] = field(default_factory=dict, compare=False, repr=False)
+    _scale_index: Dict[str, Scale] = field(default_factory=dict, init=False, compare=False, repr=False)
+    _node_index: Dict[str, Node] = field(default_factory=dict, init=False, compare=False, repr=False)
 
     def __post_init__(self):
         self._scale_index.update({s.name: s for s in self.scales})
@@ -294,14 +294,14 @@ def _parse_nodes(r: _Reader, value: Any, scale_names: set) -> List[Node]:
     for i, item in enumerate(items):
         key = f"nodes[{i}]"
         d = r.mapping(item, key)
-        r.no_unknown_keys(d, ("name", "launch", "cpu_usage", "memory_mb", "pinned",
-                              "state_handoff"), key)
         name = r.string(r.require(d, "name", key), f"{key}.name", _NODE_NAME,
                         "a ROS node name (letters, digits, _; no namespace)")
         if name in seen:
             r.fail(f"{key}.name", f"duplicate node name '{name}'")
         seen.add(name)
         key = f"nodes[{i}] ({name})"
+        r.no_unknown_keys(d, ("name", "launch", "cpu_usage", "memory_mb", "pinned",
+                              "state_handoff"), key)
         cpu = r.mapping(r.require(d, "cpu_usage", key), f"{key}.cpu_usage")
         if not cpu:
             r.fail(f"{key}.cpu_usage", "expected the CPU usage on at least one scale")

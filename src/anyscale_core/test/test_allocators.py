@@ -1,0 +1,155 @@
+"""Allocators: Algorithm 1 step by step on the test bed, and properties of every allocator on
+random systems (feasible results, critical nodes stay, the optimum is optimal)."""
+from hypothesis import given, strategies as st
+import numpy as np
+import pytest
+
+from anyscale_core.allocators import (ALLOCATORS, AllocationContext, OptimalAllocator,
+                                      PaperAllocator, make_allocator)
+from anyscale_core.characterisation import characterise, enumerate_mappings
+from anyscale_core.constraints import DynamicState, is_feasible
+from anyscale_core.cost import perf
+from anyscale_core.model import parse_model
+
+from conftest import random_systems
+
+GOOD = DynamicState(54.0)
+
+
+def where(ch, assign, node):
+    return ch.scale_names[assign[ch.node_index(node)]]
+
+
+def test_paper_moves_amcl_first_then_ar(testbed_ch):
+    alloc, ctx = PaperAllocator(), AllocationContext()
+    first = alloc.step(testbed_ch, testbed_ch.initial_mapping(), GOOD, ctx)
+    assert [testbed_ch.node_names[m.node] for m in first.moves] == ["amcl"]
+    second = alloc.step(testbed_ch, first.assign, GOOD, ctx)
+    assert [testbed_ch.node_names[m.node] for m in second.moves] == ["ar_recognition"]
+    assert alloc.step(testbed_ch, second.assign, GOOD, ctx).moves == []
+
+
+def test_paper_low_bandwidth_sends_ar_back_and_keeps_amcl(testbed_ch):
+    both = PaperAllocator().decide(testbed_ch, testbed_ch.initial_mapping(), GOOD,
+                                   AllocationContext()).assign
+    d = PaperAllocator().step(testbed_ch, both, DynamicState(3.0), AllocationContext())
+    assert [(testbed_ch.node_names[m.node], testbed_ch.scale_names[m.target])
+            for m in d.moves] == [("ar_recognition", "robot")]
+    assert "bandwidth" in d.moves[0].reason
+    assert where(testbed_ch, d.assign, "amcl") == "laptop"
+
+
+def test_paper_link_down_brings_everything_back_in_one_step(testbed_ch):
+    both = PaperAllocator().decide(testbed_ch, testbed_ch.initial_mapping(), GOOD,
+                                   AllocationContext()).assign
+    d = PaperAllocator().step(testbed_ch, both, DynamicState(54, link_up={"laptop": False}),
+                              AllocationContext())
+    assert (d.assign == testbed_ch.master).all()
+    assert all("link to laptop down" in m.reason for m in d.moves) and len(d.moves) == 2
+
+
+def test_paper_hysteresis_holds_a_node_back_for_t(testbed_ch):
+    alloc = PaperAllocator()
+    amcl = testbed_ch.node_index("amcl")
+    held = AllocationContext(now=5.0, hysteresis_s=10.0, migrated_back_at={amcl: 0.0})
+    d = alloc.step(testbed_ch, testbed_ch.initial_mapping(), GOOD, held)
+    assert [testbed_ch.node_names[m.node] for m in d.moves] == ["ar_recognition"]
+    later = AllocationContext(now=10.5, hysteresis_s=10.0, migrated_back_at={amcl: 0.0})
+    d = alloc.step(testbed_ch, testbed_ch.initial_mapping(), GOOD, later)
+    assert [testbed_ch.node_names[m.node] for m in d.moves] == ["amcl"]
+
+
+def test_paper_violating_connection_sends_node_back(testbed_ch):
+    both = PaperAllocator().decide(testbed_ch, testbed_ch.initial_mapping(), GOOD,
+                                   AllocationContext()).assign
+    amcl = testbed_ch.node_index("amcl")
+    d = PaperAllocator().step(testbed_ch, both, GOOD, AllocationContext(violating={amcl}))
+    assert [m.node for m in d.moves] == [amcl]
+    assert where(testbed_ch, d.assign, "ar_recognition") == "laptop"
+
+
+def test_paper_overloaded_remote_scale_returns_its_heaviest_node(testbed_ch):
+    both = PaperAllocator().decide(testbed_ch, testbed_ch.initial_mapping(), GOOD,
+                                   AllocationContext()).assign
+    d = PaperAllocator().step(testbed_ch, both, DynamicState(54, {"laptop": 60}),
+                              AllocationContext())
+    assert [testbed_ch.node_names[m.node] for m in d.moves] == ["amcl"]   # 60 + 12 fits
+
+
+def test_paper_prefers_the_fastest_remote_scale(testbed_dict):
+    testbed_dict["scales"].append({"name": "server", "cpu_ghz": 3.5, "cores": 8,
+                                   "memory_mb": 8192, "alpha": 8.75})
+    for node in testbed_dict["nodes"]:
+        if node["name"] in ("amcl", "ar_recognition"):
+            node["cpu_usage"]["server"] = 10
+    ch = characterise(parse_model(testbed_dict, "three.yaml"))
+    d = PaperAllocator().step(ch, ch.initial_mapping(), GOOD, AllocationContext())
+    assert ch.scale_names[d.moves[0].target] == "server"
+
+
+def test_optimal_on_testbed(testbed_ch):
+    opt = OptimalAllocator()
+    assert where(testbed_ch, opt.decide(testbed_ch, testbed_ch.initial_mapping(),
+                                        DynamicState(3.0), AllocationContext()).assign,
+                 "ar_recognition") == "robot"
+    d = opt.decide(testbed_ch, testbed_ch.initial_mapping(), GOOD, AllocationContext())
+    assert perf(testbed_ch, d.assign) == pytest.approx(125 - 83 + 36 * 3.5 + 12 * 3.5)
+
+
+def test_optimal_unchanged_situation_moves_nothing(testbed_ch):
+    opt = OptimalAllocator()
+    d = opt.decide(testbed_ch, testbed_ch.initial_mapping(), GOOD, AllocationContext())
+    assert opt.decide(testbed_ch, d.assign, GOOD, AllocationContext()).moves == []
+
+
+def test_unknown_allocator_names_the_known_ones():
+    with pytest.raises(ValueError, match="known: optimal, paper"):
+        make_allocator("simulated_annealing")
+
+
+@st.composite
+def states(draw, ch):
+    return DynamicState(
+        bandwidth_mbps=draw(st.floats(0, 30)),
+        scale_load={s: draw(st.floats(0, 95)) for s in ch.scale_names},
+        link_up={s: draw(st.booleans()) for j, s in enumerate(ch.scale_names) if j != ch.master})
+
+
+@st.composite
+def systems_and_states(draw):
+    ch = draw(random_systems())
+    return ch, draw(states(ch))
+
+
+@given(systems_and_states())
+def test_optimal_beats_every_feasible_mapping(case):
+    ch, state = case
+    best = OptimalAllocator().decide(ch, ch.initial_mapping(), state, AllocationContext())
+    assert is_feasible(ch, best.assign, state)
+    feasible = [a for a in enumerate_mappings(ch, ch.allowed) if is_feasible(ch, a, state)]
+    assert perf(ch, best.assign) >= max(perf(ch, a) for a in feasible) - 1e-6
+
+
+@given(systems_and_states())
+def test_milp_matches_enumeration(case):
+    ch, state = case
+    enumerated = OptimalAllocator().decide(ch, ch.initial_mapping(), state, AllocationContext())
+    solved = OptimalAllocator(enumeration_limit=0)
+    milp = solved.decide(ch, ch.initial_mapping(), state, AllocationContext())
+    assert solved.last_method == "milp"
+    assert is_feasible(ch, milp.assign, state)
+    assert perf(ch, milp.assign) == pytest.approx(perf(ch, enumerated.assign), abs=1e-4)
+
+
+@pytest.mark.parametrize("name", sorted(ALLOCATORS))
+@given(case=systems_and_states(), seed=st.integers(0, 2 ** 16))
+def test_allocators_return_feasible_mappings_and_keep_critical_nodes(name, case, seed):
+    ch, state = case
+    rng = np.random.default_rng(seed)
+    # From the all-on-master start and from any placement the model allows.
+    start = np.array([rng.choice(np.flatnonzero(row)) for row in ch.allowed])
+    for current in (ch.initial_mapping(), start):
+        d = make_allocator(name).decide(ch, current, state, AllocationContext())
+        assert is_feasible(ch, d.assign, state)
+        assert (d.assign[ch.critical] == ch.master).all()
+        assert (d.assign[ch.pinned] == current[ch.pinned]).all()

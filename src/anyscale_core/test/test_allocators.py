@@ -11,7 +11,7 @@ from anyscale_core.constraints import DynamicState, is_feasible
 from anyscale_core.cost import perf
 from anyscale_core.model import parse_model
 
-from conftest import random_systems
+from core_test_data import random_systems
 
 GOOD = DynamicState(54.0)
 

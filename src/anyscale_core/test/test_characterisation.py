@@ -8,7 +8,7 @@ import numpy as np
 from anyscale_core.characterisation import (characterise, count_mappings, critical_node_names,
                                             enumerate_mappings, memory_fits)
 
-from conftest import random_systems
+from core_test_data import random_systems
 
 # Table I: connection -> (freq_min, freq_opt, tolerance)
 TABLE_I = {

@@ -4,7 +4,7 @@ import pytest
 
 from anyscale_core.model import ModelError, load_model, parse_model
 
-from conftest import DELETE, mutated
+from core_test_data import DELETE, mutated
 
 
 def test_testbed_loads(testbed):

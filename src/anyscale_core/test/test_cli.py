@@ -1,0 +1,69 @@
+"""The anyscale CLI as a user runs it: check and plan output, --json, and one-line errors with
+exit status 2 (never a traceback)."""
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from anyscale_core.cli import main
+
+SCRIPT = os.path.join(os.path.dirname(__file__), "..", "scripts", "anyscale")
+
+
+def test_check_testbed(testbed_path, capsys):
+    assert main(["check", testbed_path]) == 0
+    out = capsys.readouterr().out
+    assert "migratable nodes (2):" in out
+    assert "amcl" in out and "ar_recognition" in out
+    assert "2048 before pruning, 4 after pinning, 4 after memory" in out
+
+
+def test_plan_json(testbed_path, tmp_path, capsys):
+    state = tmp_path / "state.yaml"
+    state.write_text("bandwidth_mbps: 3\n")
+    assert main(["plan", testbed_path, "--state", str(state), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert set(result) == {"mapping", "perf", "feasible", "solver"}
+    assert result["mapping"]["amcl"] == "laptop"
+    assert result["mapping"]["ar_recognition"] == "robot"
+    assert result["feasible"] is True and result["solver"] == "paper"
+
+
+@pytest.mark.parametrize("solver", ["paper", "optimal"])
+def test_plan_link_down_keeps_everything_home(testbed_path, tmp_path, capsys, solver):
+    state = tmp_path / "state.yaml"
+    state.write_text("link_up: {laptop: false}\n")
+    assert main(["plan", testbed_path, "--state", str(state), "--solver", solver]) == 0
+    out = capsys.readouterr().out
+    assert "feasible: yes" in out and "-> laptop" not in out
+
+
+def test_bad_inputs_exit_2_with_one_line(testbed_path, tmp_path, capsys):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("scales: [\n")
+    assert main(["check", str(bad)]) == 2
+    assert main(["plan", testbed_path, "--solver", "nope"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[0].startswith(f"anyscale check: error: {bad}: invalid YAML")
+    assert err[1] == "anyscale plan: error: --solver: unknown allocator 'nope' (known: " \
+                     "optimal, paper)"
+
+
+def test_script_reports_errors_without_traceback(tmp_path):
+    bad = tmp_path / "model.yaml"
+    bad.write_text("scales: []\nnetwork: {max_bandwidth_mbps: 1}\nnodes: []\nconnections: []\n")
+    run = subprocess.run([sys.executable, SCRIPT, "check", str(bad)], capture_output=True,
+                         text=True, env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
+    assert run.returncode == 2
+    assert "Traceback" not in run.stderr
+    assert f"{bad}: scales: expected at least one scale" in run.stderr
+
+
+@pytest.mark.parametrize("command", ["check", "plan", "simulate"])
+def test_every_command_has_help(command, capsys):
+    with pytest.raises(SystemExit) as done:
+        main([command, "--help"])
+    assert done.value.code == 0
+    assert "usage: anyscale " + command in capsys.readouterr().out

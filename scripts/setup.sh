@@ -11,7 +11,8 @@ ANYSCALE_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:$PATH"
 
 ANYSCALE_APT_PACKAGES=(
-  # ROS 1 core, build and test tooling
+  # build tools, ROS 1 core, build and test tooling
+  cmake make g++
   ros-core-dev catkin python3-catkin-pkg catkin-lint
   python3-rospy libroscpp-dev python3-roslaunch python3-rosgraph
   python3-rostest librostest-dev libgtest-dev

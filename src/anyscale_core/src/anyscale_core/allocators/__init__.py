@@ -1,4 +1,5 @@
-"""Allocators behind one interface: decide(ch, assign, state, ctx) -> Decision."""
+"""Allocators behind one interface: step(ch, assign, state, ctx) -> Decision is one decision
+period's work (one iteration of the paper's loop); decide(...) is the converged decision."""
 from .base import AllocationContext, Decision, Move, candidate_scales
 from .optimal import OptimalAllocator
 from .paper import PaperAllocator

@@ -40,6 +40,9 @@ class OptimalAllocator:
         return Decision(best, moves_between(ch, assign, best, "higher Perf (optimal)",
                                             "constraints (optimal)"))
 
+    # One decision period: the optimum is reached in one step.
+    step = decide
+
     @staticmethod
     def _enumerate(ch, assign, state, mask):
         assigns = enumerate_mappings(ch, mask)

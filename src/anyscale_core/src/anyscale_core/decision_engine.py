@@ -1,0 +1,241 @@
+"""The decision node's logic without ROS: agent reports in, start/stop/renew actions out.
+
+Each tick turns the latest report of every scale into the dynamic state (paper III-B-2), feeds
+the per-connection frequency/tolerance trackers, runs the allocator once (one iteration of
+Algorithm 1 per period, as the paper's loop sleeps between iterations) and turns its moves into
+actions for the agents. The rospy wrapper only converts messages and calls services.
+"""
+from dataclasses import dataclass, field
+import math
+from typing import Dict, List, Mapping, Optional, Tuple
+
+import numpy as np
+
+from .allocators import AllocationContext
+from .characterisation import Characterisation
+from .constraints import DynamicState, FrequencyToleranceTracker
+from .cost import ObjectiveIntegrator, perf
+
+
+@dataclass(frozen=True)
+class DecisionParams:
+    hysteresis_s: float = 10.0          # the paper's T: no re-migration this soon after a return
+    lease_s: float = 3.0                # remote instances end this long after the last renewal
+    status_timeout_s: float = 1.5       # a remote scale silent this long counts as link down
+    act_at_tolerance: float = 0.5       # move back once this share of a tolerance is spent
+    startup_grace_s: float = 5.0        # a moved node's connections are not judged this long
+
+
+@dataclass(frozen=True)
+class ScaleReport:
+    """One agent's latest status, in the engine's terms."""
+    scale: str
+    received_at: float                           # engine clock (s)
+    cpu_percent: float                           # % of the scale's capacity
+    capacity_cores: float                        # cores, or the cgroup quota in cores
+    running: Mapping[str, float] = field(default_factory=dict)  # node -> CPU % of one core
+    topic_rates: Mapping[str, float] = field(default_factory=dict)  # topic -> effective Hz
+    link_up: bool = True
+    bandwidth_mbps: float = math.nan             # measured estimate; NaN = not yet measured
+
+
+def effective_rate(rate_hz: float, last_message_age_s: float) -> float:
+    """The window rate, but no more than silence allows: a topic quiet for 2 s is at most
+    0.5 Hz now, whatever its window still says."""
+    if last_message_age_s > 0 and math.isfinite(last_message_age_s):
+        return min(rate_hz, 1.0 / last_message_age_s)
+    if math.isinf(last_message_age_s):
+        return 0.0
+    return rate_hz
+
+
+def pose_handoff_params(x: float, y: float, yaw: float, cov_xx: float, cov_yy: float,
+                        cov_aa: float) -> Dict[str, float]:
+    """AMCL's initial-pose parameters (ROS amcl's names) from the last estimated pose."""
+    return {"initial_pose_x": x, "initial_pose_y": y, "initial_pose_a": yaw,
+            "initial_cov_xx": cov_xx, "initial_cov_yy": cov_yy, "initial_cov_aa": cov_aa}
+
+
+@dataclass(frozen=True)
+class StartNode:
+    node: str
+    scale: str
+    param_overrides: Tuple[Tuple[str, float], ...]
+    lease_s: float                      # 0 on the master
+
+
+@dataclass(frozen=True)
+class StopNode:
+    node: str
+    scale: str
+
+
+@dataclass(frozen=True)
+class RenewLeases:
+    scale: str
+    nodes: Tuple[str, ...]
+    lease_s: float
+
+
+@dataclass(frozen=True)
+class Event:
+    kind: str                           # "start", "migrate", "migrate_back", "adopt"
+    node: str
+    from_scale: str
+    to_scale: str
+    reason: str
+
+
+@dataclass
+class TickResult:
+    actions: List[object]
+    events: List[Event]
+    state: DynamicState
+    violating: List[str]
+
+
+class DecisionEngine:
+    def __init__(self, ch: Characterisation, allocator, params: DecisionParams = DecisionParams(),
+                 start_time: float = 0.0):
+        self.ch = ch
+        self.allocator = allocator
+        self.params = params
+        self.assign = ch.initial_mapping()
+        self.migrated_back_at: Dict[int, float] = {}
+        self.moved_at: Dict[int, float] = {}
+        self.handoff: Dict[str, Mapping[str, float]] = {}
+        self.objective = ObjectiveIntegrator(start_time, perf(ch, self.assign))
+        self.trackers = [FrequencyToleranceTracker(c.freq_min, c.tolerance)
+                         for c in ch.model.connections]
+
+    # --- start-up -----------------------------------------------------------------------------
+    def adopt_or_start(self, reports: Mapping[str, ScaleReport], now: float) -> TickResult:
+        """The first decision: keep what the agents already run (a restarted decision node),
+        start the rest where the paper starts them (the master, or a pinned node's scale)."""
+        actions, events = [], []
+        for i, name in enumerate(self.ch.node_names):
+            where = [s for s, r in reports.items() if name in r.running]
+            home = self.ch.scale_names[self.assign[i]]
+            if where:
+                keep = home if home in where else where[0]
+                if not self.ch.allowed[i, self.ch.scale_index(keep)]:
+                    keep = home
+                self.assign[i] = self.ch.scale_index(keep)
+                events.append(Event("adopt", name, keep, keep, "already running"))
+                actions += [StopNode(name, s) for s in where if s != keep]
+                if keep not in where:
+                    actions.append(self._start(i, self.ch.scale_index(keep)))
+            else:
+                actions.append(self._start(i, self.assign[i]))
+                events.append(Event("start", name, "", home, "initial configuration"))
+            self.moved_at[i] = now
+        self.objective.change(now, perf(self.ch, self.assign))
+        return TickResult(actions, events, self.dynamic_state(reports, now), [])
+
+    # --- every period -------------------------------------------------------------------------
+    def tick(self, reports: Mapping[str, ScaleReport], now: float) -> TickResult:
+        state = self.dynamic_state(reports, now)
+        violating = self._update_trackers(reports, now)
+        ctx = AllocationContext(now, self.params.hysteresis_s, dict(self.migrated_back_at),
+                                frozenset(violating))
+        decision = self.allocator.step(self.ch, self.assign, state, ctx)
+        actions, events = [], []
+        up = state.up_vector(self.ch)
+        for move in decision.moves:
+            name = self.ch.node_names[move.node]
+            source, target = self.ch.scale_names[move.source], self.ch.scale_names[move.target]
+            back = move.target == self.ch.master
+            # Start first: the master hands the name to the new process and ends the old one,
+            # so the gap is one start-up. An unreachable old instance ends with its lease.
+            actions.append(self._start(move.node, move.target))
+            if up[move.source]:
+                actions.append(StopNode(name, source))
+            events.append(Event("migrate_back" if back else "migrate", name, source, target,
+                                move.reason))
+            if back:
+                self.migrated_back_at[move.node] = now
+            self.moved_at[move.node] = now
+        if decision.moves:
+            self.assign = decision.assign.copy()
+            self.objective.change(now, perf(self.ch, self.assign))
+        actions += self._renewals(up)
+        return TickResult(actions, events, state,
+                          [self.ch.node_names[i] for i in sorted(violating)])
+
+    def action_failed(self, node: str, scale: str, now: float) -> Optional[Event]:
+        """A start on a remote scale did not happen: the node is on the master again (the
+        wrapper has started it there) and is held back for T like any return."""
+        i = self.ch.node_index(node)
+        if self.ch.scale_names[self.assign[i]] != scale or self.assign[i] == self.ch.master:
+            return None
+        self.assign[i] = self.ch.master
+        self.migrated_back_at[i] = now
+        self.moved_at[i] = now
+        self.objective.change(now, perf(self.ch, self.assign))
+        return Event("migrate_back", node, scale, self.ch.scale_names[self.ch.master],
+                     "start on the remote scale failed")
+
+    def observe_handoff(self, node: str, params: Mapping[str, float]):
+        """The latest state of a node that hands its state over (e.g. its last pose)."""
+        self.handoff[node] = dict(params)
+
+    def mapping(self) -> Dict[str, str]:
+        return self.ch.as_dict(self.assign)
+
+    # --- inside -------------------------------------------------------------------------------
+    def dynamic_state(self, reports: Mapping[str, ScaleReport], now: float) -> DynamicState:
+        master = self.ch.scale_names[self.ch.master]
+        link_up, loads, estimates = {}, {}, []
+        for k, scale in enumerate(self.ch.scale_names):
+            report = reports.get(scale)
+            fresh = report is not None and now - report.received_at <= self.params.status_timeout_s
+            if scale != master:
+                link_up[scale] = bool(fresh and report.link_up)
+                if fresh and math.isfinite(report.bandwidth_mbps):
+                    estimates.append(report.bandwidth_mbps)
+            if report is not None:
+                loads[scale] = self._background_load(report)
+        bandwidth = min(estimates) if estimates else self.ch.model.network.max_bandwidth_mbps
+        return DynamicState(bandwidth, loads, link_up)
+
+    def _background_load(self, report: ScaleReport) -> float:
+        """Scale CPU not explained by the model's nodes running there (% of the scale)."""
+        ours = sum(report.running.get(n, 0.0) for n in self.ch.node_names)
+        load = report.cpu_percent - ours / max(report.capacity_cores, 1e-9)
+        return float(np.clip(load, 0.0, 100.0))
+
+    def _update_trackers(self, reports, now) -> set:
+        """Feed each connection's rate as received where its subscriber runs; return the
+        remote nodes on connections that spent `act_at_tolerance` of their tolerance."""
+        violating = set()
+        model = self.ch.model
+        for c, (conn, tracker) in enumerate(zip(model.connections, self.trackers)):
+            pub, sub = self.ch.conn_pub[c], self.ch.conn_sub[c]
+            ends = [i for i in (pub, sub) if self.assign[i] != self.ch.master]
+            if not ends:
+                continue
+            if any(now - self.moved_at.get(i, -math.inf) < self.params.startup_grace_s
+                   for i in (pub, sub)):
+                tracker.update(now, math.inf)      # settling after a move: not judged
+                continue
+            report = reports.get(self.ch.scale_names[self.assign[sub]])
+            rate = report.topic_rates.get(conn.topic, math.nan) if report else math.nan
+            tracker.update(now, rate)
+            if tracker.violated(now) or tracker.used_fraction(now) >= self.params.act_at_tolerance:
+                violating.update(i for i in ends if not self.ch.pinned[i])
+        return violating
+
+    def _start(self, i: int, k: int) -> StartNode:
+        name = self.ch.node_names[i]
+        handoff = self.ch.model.node(name).state_handoff
+        overrides = tuple(sorted(self.handoff.get(name, {}).items())) if handoff else ()
+        lease = 0.0 if k == self.ch.master else self.params.lease_s
+        return StartNode(name, self.ch.scale_names[k], overrides, lease)
+
+    def _renewals(self, up) -> List[RenewLeases]:
+        renewals = []
+        for k, scale in enumerate(self.ch.scale_names):
+            nodes = tuple(self.ch.node_names[i] for i in np.flatnonzero(self.assign == k))
+            if k != self.ch.master and up[k] and nodes:
+                renewals.append(RenewLeases(scale, nodes, self.params.lease_s))
+        return renewals

@@ -1,0 +1,163 @@
+"""The decision node's logic on the test bed, driven by synthetic agent reports: the paper's
+scenarios (good link, weak link, link loss, restore after T, slow connections), leases,
+state hand-off and adoption after a restart."""
+import math
+
+import pytest
+
+from anyscale_core.allocators import make_allocator
+from anyscale_core.decision_engine import (DecisionEngine, DecisionParams, RenewLeases,
+                                           ScaleReport, StartNode, StopNode, effective_rate,
+                                           pose_handoff_params)
+
+# Every Table I topic at its optimal rate.
+HEALTHY = {"/scan": 10.0, "/joint_states": 40.0, "/wheel_ticks": 40.0,
+           "/camera/image_raw": 30.0, "/amcl_pose": 5.0, "/odom": 10.0,
+           "/odometry/filtered": 5.0, "/ar_markers": 30.0}
+
+
+def reports(now, bandwidth=20.0, laptop=True, rates=None, laptop_running=(), laptop_load=0.0):
+    rates = {**HEALTHY, **(rates or {})}
+    out = {"robot": ScaleReport("robot", now, 40.0, 2.0, {}, rates)}
+    if laptop:
+        out["laptop"] = ScaleReport("laptop", now, laptop_load, 4.0,
+                                    {n: 10.0 for n in laptop_running}, rates, True, bandwidth)
+    return out
+
+
+@pytest.fixture
+def engine(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"), DecisionParams(startup_grace_s=0.0))
+    e.adopt_or_start(reports(0.0), 0.0)
+    return e
+
+
+def remote(engine):
+    return sorted(n for n, s in engine.mapping().items() if s != "robot")
+
+
+def test_initial_configuration_starts_everything_on_the_robot(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"))
+    result = e.adopt_or_start(reports(0.0), 0.0)
+    assert sorted(a.node for a in result.actions) == sorted(testbed_ch.node_names)
+    assert all(isinstance(a, StartNode) and a.scale == "robot" and a.lease_s == 0
+               for a in result.actions)
+
+
+def test_good_link_moves_amcl_then_ar_and_renews_their_leases(engine):
+    first = engine.tick(reports(1.0), 1.0)
+    assert [(e.kind, e.node, e.to_scale) for e in first.events] == [("migrate", "amcl", "laptop")]
+    start, stop, renew = first.actions
+    assert start == StartNode("amcl", "laptop", (), 3.0)
+    assert stop == StopNode("amcl", "robot")
+    assert renew == RenewLeases("laptop", ("amcl",), 3.0)
+    engine.tick(reports(2.0), 2.0)
+    assert remote(engine) == ["amcl", "ar_recognition"]
+    third = engine.tick(reports(3.0), 3.0)
+    assert third.events == []
+    assert third.actions == [RenewLeases("laptop", ("amcl", "ar_recognition"), 3.0)]
+
+
+def test_weak_link_sends_ar_back_and_keeps_amcl(engine):
+    for t in (1.0, 2.0):
+        engine.tick(reports(t), t)
+    result = engine.tick(reports(3.0, bandwidth=3.0), 3.0)
+    assert [(e.kind, e.node) for e in result.events] == [("migrate_back", "ar_recognition")]
+    assert remote(engine) == ["amcl"]
+
+
+def test_link_loss_brings_both_back_without_talking_to_the_laptop(engine):
+    for t in (1.0, 2.0):
+        engine.tick(reports(t), t)
+    # The laptop's reports stop: stale after status_timeout_s.
+    stale = reports(2.0)
+    result = engine.tick({**stale, "robot": reports(4.0)["robot"]}, 4.0)
+    assert remote(engine) == []
+    assert all(a.scale == "robot" for a in result.actions)          # no stop sent to the laptop
+    assert {a.node for a in result.actions if isinstance(a, StartNode)} == \
+        {"amcl", "ar_recognition"}
+    assert not any(isinstance(a, RenewLeases) for a in result.actions)
+
+
+def test_restored_link_moves_out_again_only_after_t(engine):
+    for t in (1.0, 2.0):
+        engine.tick(reports(t), t)
+    engine.tick(reports(3.0, laptop=False), 3.0)
+    assert remote(engine) == []
+    for t in (4.0, 8.0, 12.9):
+        assert engine.tick(reports(t), t).events == []                # hysteresis T = 10 s
+    assert [e.node for e in engine.tick(reports(13.1), 13.1).events] == ["amcl"]
+
+
+def test_slow_connection_moves_its_node_back_before_the_tolerance_runs_out(engine):
+    engine.tick(reports(1.0), 1.0)
+    assert remote(engine) == ["amcl"]
+    # /amcl_pose (AMCL -> EKF, freq_min 2 Hz, tolerance 2 s) drops to 1 Hz at t = 2.
+    engine.tick(reports(2.0, rates={"/amcl_pose": 1.0}, bandwidth=3.0), 2.0)
+    assert remote(engine) == ["amcl"]                                  # 0 s of 2 s spent
+    result = engine.tick(reports(3.0, rates={"/amcl_pose": 1.0}, bandwidth=3.0), 3.0)
+    assert result.violating == ["amcl"]                               # half the tolerance
+    assert [(e.kind, e.node) for e in result.events] == [("migrate_back", "amcl")]
+
+
+def test_moved_node_gets_a_start_up_grace(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"), DecisionParams(startup_grace_s=5.0))
+    e.adopt_or_start(reports(0.0), 0.0)
+    e.tick(reports(6.0), 6.0)                                          # AMCL moves out
+    silent = {"/amcl_pose": 0.0}
+    for t in (7.0, 9.0, 10.9):
+        assert "amcl" in remote(e) and e.tick(reports(t, rates=silent), t).violating == []
+    # After the grace the tolerance starts: half of its 2 s are spent at t = 13.
+    assert e.tick(reports(12.0, rates=silent), 12.0).violating == []
+    assert e.tick(reports(13.0, rates=silent), 13.0).violating == ["amcl"]
+
+
+def test_start_carries_the_last_pose(engine):
+    engine.observe_handoff("amcl", pose_handoff_params(3.0, 4.0, 1.5, 0.1, 0.1, 0.05))
+    start = engine.tick(reports(1.0), 1.0).actions[0]
+    assert dict(start.param_overrides)["initial_pose_x"] == 3.0
+    assert dict(start.param_overrides)["initial_pose_a"] == 1.5
+
+
+def test_failed_remote_start_returns_the_node_and_holds_it(engine):
+    engine.tick(reports(1.0), 1.0)
+    event = engine.action_failed("amcl", "laptop", 1.5)
+    assert event.kind == "migrate_back" and remote(engine) == []
+    assert [e.node for e in engine.tick(reports(2.0), 2.0).events] == ["ar_recognition"]
+
+
+def test_restarted_engine_adopts_what_runs(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"))
+    running = reports(0.0, laptop_running=("amcl",))
+    running["robot"] = running["robot"].__class__(
+        "robot", 0.0, 40.0, 2.0, {n: 5.0 for n in testbed_ch.node_names if n != "amcl"}, HEALTHY)
+    result = e.adopt_or_start(running, 0.0)
+    assert result.actions == []
+    assert {ev.kind for ev in result.events} == {"adopt"}
+    assert remote(e) == ["amcl"]
+
+
+def test_critical_nodes_never_move(engine, testbed_ch):
+    for t in range(1, 30):
+        engine.tick(reports(float(t), bandwidth=50.0 if t % 7 else 0.5,
+                            laptop=(t % 11 != 0)), float(t))
+        for i in range(testbed_ch.num_nodes):
+            if testbed_ch.critical[i]:
+                assert engine.mapping()[testbed_ch.node_names[i]] == "robot"
+
+
+def test_background_load_excludes_the_models_nodes(engine):
+    state = engine.dynamic_state(reports(1.0, laptop_load=50.0, laptop_running=("amcl",)), 1.0)
+    assert state.scale_load["laptop"] == pytest.approx(50.0 - 10.0 / 4.0)
+
+
+def test_objective_grows_with_better_mappings(engine, testbed_ch):
+    for t in (1.0, 2.0):
+        engine.tick(reports(t), t)
+    assert engine.objective.total(12.0) == pytest.approx(125 * 1 + 201 * 1 + 210 * 10)
+
+
+@pytest.mark.parametrize("rate,age,expected", [(10.0, 0.05, 10.0), (10.0, 2.0, 0.5),
+                                               (5.0, math.inf, 0.0), (5.0, 0.0, 5.0)])
+def test_effective_rate_follows_silence(rate, age, expected):
+    assert effective_rate(rate, age) == expected

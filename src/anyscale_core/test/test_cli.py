@@ -48,7 +48,7 @@ def test_bad_inputs_exit_2_with_one_line(testbed_path, tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert err[0].startswith(f"anyscale check: error: {bad}: invalid YAML")
     assert err[1] == "anyscale plan: error: --solver: unknown allocator 'nope' (known: " \
-                     "optimal, paper)"
+                     "optimal, paper, paper_local)"
 
 
 def test_script_reports_errors_without_traceback(tmp_path):

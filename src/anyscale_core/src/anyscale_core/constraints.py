@@ -134,6 +134,26 @@ def violations(ch: Characterisation, assign: np.ndarray, state: DynamicState) ->
     return found
 
 
+def feasible_many(ch: Characterisation, assigns: np.ndarray, state: DynamicState) -> np.ndarray:
+    """(S,) bool: each mapping respects memory, remote CPU, bandwidth and links (placement is the
+    caller's: trials only use scales candidate_scales allows)."""
+    ok = np.ones(len(assigns), dtype=bool)
+    load = state.load_vector(ch)
+    up = state.up_vector(ch)
+    cpu = ch.cpu[np.arange(ch.num_nodes), assigns]
+    for k in range(ch.num_scales):
+        on_k = assigns == k
+        ok &= (on_k * ch.memory).sum(axis=1) <= ch.scale_memory[k] + 1e-9
+        if k != ch.master:
+            used = on_k.any(axis=1)
+            ok &= ~used | ((on_k * cpu).sum(axis=1) + load[k] <= CPU_CAPACITY_PERCENT + 1e-9)
+            if not up[k]:
+                ok &= ~used
+    crosses = assigns[:, ch.conn_pub] != assigns[:, ch.conn_sub]
+    ok &= crosses @ ch.conn_bandwidth <= state.bandwidth_mbps + 1e-9
+    return ok
+
+
 def is_feasible(ch: Characterisation, assign: np.ndarray, state: DynamicState) -> bool:
     return not violations(ch, assign, state)
 

@@ -1,12 +1,14 @@
 """Allocators behind one interface: step(ch, assign, state, ctx) -> Decision is one decision
 period's work (one iteration of the paper's loop); decide(...) is the converged decision."""
 from .base import AllocationContext, Decision, Move, candidate_scales
+from .local import PaperLocalAllocator
 from .optimal import OptimalAllocator
 from .paper import PaperAllocator
 
 ALLOCATORS = {
     PaperAllocator.name: PaperAllocator,
     OptimalAllocator.name: OptimalAllocator,
+    PaperLocalAllocator.name: PaperLocalAllocator,
 }
 
 
@@ -20,4 +22,4 @@ def make_allocator(name: str):
 
 
 __all__ = ["ALLOCATORS", "AllocationContext", "Decision", "Move", "OptimalAllocator",
-           "PaperAllocator", "candidate_scales", "make_allocator"]
+           "PaperAllocator", "PaperLocalAllocator", "candidate_scales", "make_allocator"]

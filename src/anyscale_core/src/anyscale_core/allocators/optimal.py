@@ -9,7 +9,7 @@ from scipy import sparse
 from scipy.optimize import Bounds, LinearConstraint, milp
 
 from ..characterisation import Characterisation, enumerate_mappings
-from ..constraints import CPU_CAPACITY_PERCENT, DynamicState
+from ..constraints import CPU_CAPACITY_PERCENT, DynamicState, feasible_many
 from ..cost import perf_of_many
 from .base import AllocationContext, Decision, candidate_scales, moves_between
 
@@ -48,17 +48,7 @@ class OptimalAllocator:
         assigns = enumerate_mappings(ch, mask)
         if len(assigns) == 0:
             return None
-        ok = np.ones(len(assigns), dtype=bool)
-        load = state.load_vector(ch)
-        rows = np.arange(ch.num_nodes)
-        for k in range(ch.num_scales):
-            on_k = assigns == k
-            ok &= (on_k * ch.memory).sum(axis=1) <= ch.scale_memory[k] + 1e-9
-            if k != ch.master:
-                cpu = (on_k * ch.cpu[rows, k]).sum(axis=1) + load[k]
-                ok &= cpu <= CPU_CAPACITY_PERCENT + 1e-9
-        crosses = assigns[:, ch.conn_pub] != assigns[:, ch.conn_sub]
-        ok &= crosses @ ch.conn_bandwidth <= state.bandwidth_mbps + 1e-9
+        ok = feasible_many(ch, assigns, state)
         if not ok.any():
             return None
         score = perf_of_many(ch, assigns) - _MOVE_PENALTY * (assigns != assign).sum(axis=1)

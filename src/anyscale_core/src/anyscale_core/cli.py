@@ -117,13 +117,15 @@ def print_plan(ch: Characterisation, state: DynamicState, start, decision, resul
     print(f"solver {result['solver']}; bandwidth {state.bandwidth_mbps:g} Mbit/s; "
           f"links {links}; background load {loads}")
     reasons = {m.node: m.reason for m in decision.moves}
-    width = max(len(n) for n in ch.node_names)
-    for i, name in enumerate(ch.node_names):
-        where = ch.scale_names[decision.assign[i]]
+    shown = [i for i in range(ch.num_nodes) if ch.migratable[i] or i in reasons]
+    width = max((len(ch.node_names[i]) for i in shown), default=0)
+    for i in shown:
+        name, where = ch.node_names[i], ch.scale_names[decision.assign[i]]
         if i in reasons:
             print(f"  {name:<{width}}  {ch.scale_names[start[i]]} -> {where}  ({reasons[i]})")
         else:
-            print(f"  {name:<{width}}  {where}")
+            print(f"  {name:<{width}}  stays on {where}")
+    print(f"  ({ch.num_nodes - len(shown)} critical or pinned nodes stay where they are)")
     base = perf(ch, start)
     gain = (result["perf"] / base - 1) * 100 if base > 0 else 0.0
     print(f"Perf (Eq. 1): {base:g} -> {result['perf']:g} ({gain:+.1f} %)")

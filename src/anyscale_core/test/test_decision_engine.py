@@ -47,7 +47,7 @@ def test_initial_configuration_starts_everything_on_the_robot(testbed_ch):
 def test_good_link_moves_amcl_then_ar_and_renews_their_leases(engine):
     first = engine.tick(reports(1.0), 1.0)
     assert [(e.kind, e.node, e.to_scale) for e in first.events] == [("migrate", "amcl", "laptop")]
-    start, stop, renew = first.actions
+    stop, start, renew = first.actions
     assert start == StartNode("amcl", "laptop", (), 3.0)
     assert stop == StopNode("amcl", "robot")
     assert renew == RenewLeases("laptop", ("amcl",), 3.0)
@@ -114,7 +114,7 @@ def test_moved_node_gets_a_start_up_grace(testbed_ch):
 
 def test_start_carries_the_last_pose(engine):
     engine.observe_handoff("amcl", pose_handoff_params(3.0, 4.0, 1.5, 0.1, 0.1, 0.05))
-    start = engine.tick(reports(1.0), 1.0).actions[0]
+    start = engine.tick(reports(1.0), 1.0).actions[1]
     assert dict(start.param_overrides)["initial_pose_x"] == 3.0
     assert dict(start.param_overrides)["initial_pose_a"] == 1.5
 

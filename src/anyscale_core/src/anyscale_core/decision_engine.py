@@ -145,11 +145,12 @@ class DecisionEngine:
             name = self.ch.node_names[move.node]
             source, target = self.ch.scale_names[move.source], self.ch.scale_names[move.target]
             back = move.target == self.ch.master
-            # Start first: the master hands the name to the new process and ends the old one,
-            # so the gap is one start-up. An unreachable old instance ends with its lease.
-            actions.append(self._start(move.node, move.target))
+            # Stop the old instance first when it can be reached: relying on the master's
+            # same-name replacement can shut down the new roscpp instance too (ros_comm#2018).
+            # An unreachable old instance ends by itself when its lease runs out.
             if up[move.source]:
                 actions.append(StopNode(name, source))
+            actions.append(self._start(move.node, move.target))
             events.append(Event("migrate_back" if back else "migrate", name, source, target,
                                 move.reason))
             if back:

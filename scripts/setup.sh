@@ -24,7 +24,7 @@ ANYSCALE_APT_PACKAGES=(
   libnav-msgs-dev python3-nav-msgs libvisualization-msgs-dev python3-visualization-msgs
   libdiagnostic-msgs-dev python3-diagnostic-msgs libtf2-msgs-dev python3-tf2-msgs
   # ROS libraries the nodes use
-  topic-tools libtopic-tools-dev python3-topic-tools
+  topic-tools libtopic-tools-dev python3-topic-tools libyaml-cpp-dev
   python3-tf2-ros libtf2-ros-dev python3-message-filters
   python3-diagnostic-updater libdiagnostic-updater-dev python3-cv-bridge
   # Python libraries for /usr/bin/python3

@@ -1,0 +1,91 @@
+// The roscpp agent of one scale: parameters, services, timers and status over the core library.
+#pragma once
+
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <ros/callback_queue.h>
+#include <ros/ros.h>
+
+#include <anyscale_msgs/ListNodes.h>
+#include <anyscale_msgs/RenewLeases.h>
+#include <anyscale_msgs/ScaleStatus.h>
+#include <anyscale_msgs/SetWatchedTopics.h>
+#include <anyscale_msgs/StartNode.h>
+#include <anyscale_msgs/StopNode.h>
+
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "anyscale_agent_cpp/graph_monitor.h"
+#include "anyscale_agent_cpp/lease_table.h"
+#include "anyscale_agent_cpp/link_monitor.h"
+#include "anyscale_agent_cpp/node_model.h"
+#include "anyscale_agent_cpp/supervisor.h"
+#include "anyscale_agent_cpp/system_sampler.h"
+#include "anyscale_agent_cpp/topic_watcher.h"
+
+namespace anyscale_agent
+{
+
+class AgentNode
+{
+public:
+  // Reads parameters and the model; throws std::runtime_error with the reason if they are bad.
+  explicit AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh);
+  // Stops every node it started before the ROS connection goes away.
+  ~AgentNode();
+
+  // Runs the callback queues until ROS shuts down.
+  void spin();
+
+private:
+  // Services (agent_services.cpp).
+  bool onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::StartNode::Response& res);
+  bool onStop(anyscale_msgs::StopNode::Request& req, anyscale_msgs::StopNode::Response& res);
+  bool onRenew(anyscale_msgs::RenewLeases::Request& req, anyscale_msgs::RenewLeases::Response& res);
+  bool onList(anyscale_msgs::ListNodes::Request& req, anyscale_msgs::ListNodes::Response& res);
+  bool onSetWatched(anyscale_msgs::SetWatchedTopics::Request& req, anyscale_msgs::SetWatchedTopics::Response& res);
+
+  // Timers (agent_node.cpp).
+  void onSample(const ros::SteadyTimerEvent&);      // /proc, topics, link -> /anyscale/status
+  void onSupervise(const ros::SteadyTimerEvent&);   // reaping, signal escalation, lease expiry
+  void onGraph(const ros::SteadyTimerEvent&);       // master queries: registration, local topics
+
+  std::vector<anyscale_msgs::NodeProcess> nodeProcesses();
+  void diagnoseNodes(diagnostic_updater::DiagnosticStatusWrapper& stat);
+  void diagnoseScale(diagnostic_updater::DiagnosticStatusWrapper& stat);
+  void diagnoseLink(diagnostic_updater::DiagnosticStatusWrapper& stat);
+  void diagnoseTopics(diagnostic_updater::DiagnosticStatusWrapper& stat);
+  static double steadyNow();
+  std::string locatePackage(const std::string& package) const;
+
+  ros::NodeHandle nh_, pnh_;
+  std::string scale_;
+  bool is_master_ = false;
+  std::string model_path_;
+  std::string log_dir_;
+  bool clear_params_ = true;
+  double sample_period_s_ = 0.5;
+
+  NodeModel model_;
+  Supervisor supervisor_;
+  LeaseTable leases_;
+  std::mutex leases_mutex_;
+  SystemSampler sampler_;
+  std::mutex sample_mutex_;
+  anyscale_msgs::ScaleStatus last_status_;
+  std::unique_ptr<TopicWatcher> topics_;
+  std::unique_ptr<LinkMonitor> link_;
+  GraphMonitor graph_;
+
+  // Supervision runs on its own queue and thread, and master queries on another, so neither
+  // a blocking XML-RPC call nor a stop that waits can delay a lease expiry.
+  ros::CallbackQueue supervise_queue_, graph_queue_;
+  ros::Publisher status_pub_;
+  std::vector<ros::ServiceServer> services_;
+  ros::SteadyTimer sample_timer_, supervise_timer_, graph_timer_;
+  diagnostic_updater::Updater diagnostics_;
+};
+
+}  // namespace anyscale_agent

@@ -1,0 +1,77 @@
+// The allow-list of nodes an agent may start: the `nodes` of the system model (no ROS).
+#pragma once
+
+#include <yaml-cpp/yaml.h>
+
+#include <functional>
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace anyscale_agent
+{
+
+struct ModelError : std::runtime_error
+{
+  using std::runtime_error::runtime_error;
+};
+
+struct NodeDecl
+{
+  std::string name;  // graph name without leading slash, e.g. "amcl" or "robot/amcl"
+  std::string package;
+  std::string type;
+  std::vector<std::string> args;
+  std::vector<std::pair<std::string, std::string>> remaps;
+  YAML::Node params;  // map of private parameters (may be null)
+};
+
+// Package name -> its source/share directory, or "" if unknown (rospack in the ROS layer).
+using PackageLocator = std::function<std::string(const std::string&)>;
+
+class NodeModel
+{
+public:
+  // Reads the `nodes` list of a system model. Throws ModelError naming the file, the node and
+  // the key that is wrong. The rest of the model is the decision node's business.
+  static NodeModel load(const std::string& path);
+  static NodeModel parse(const YAML::Node& root, const std::string& source);
+
+  // Accepts "amcl" and "/amcl"; nullopt if not declared.
+  const NodeDecl* find(const std::string& name) const;
+  std::vector<std::string> names() const;
+
+private:
+  std::map<std::string, NodeDecl> nodes_;
+};
+
+// Graph-name rules of ROS (names.h): a base name starts with a letter and holds only
+// letters, digits and '_'; namespaces are joined by single '/'.
+bool isValidNodeName(const std::string& name);
+bool isValidPackageName(const std::string& name);
+// An executable name: a plain file name, never a path ("/", ".." or a leading '-' refused).
+bool isValidExecutableName(const std::string& name);
+
+// Replaces every $(find pkg) as roslaunch does; throws ModelError for an unknown package or
+// any other $(...) substitution, which the agent does not evaluate.
+std::string substituteFind(const std::string& text, const PackageLocator& locate);
+
+// Where rosrun / roslaunch would find `type` of `package`: <prefix>/lib/<package>/<type> for
+// each prefix in order (catkin's libexec), else a single executable file of that name anywhere
+// below the package directory. Throws ModelError saying what was looked for where.
+std::string resolveExecutable(const std::string& package, const std::string& type,
+                              const std::vector<std::string>& prefixes, const PackageLocator& locate);
+
+// CMAKE_PREFIX_PATH split on ':', plus /usr, which Debian's catkin always searches as a
+// workspace (catkin/workspace.py get_workspaces()).
+std::vector<std::string> catkinPrefixes(const char* cmake_prefix_path);
+
+// The command line of a declared node: executable, args, remaps "from:=to", and the name
+// given as __name (plus __ns for a namespaced name). Parameters are not on the command line;
+// the ROS layer sets them on the parameter server first, as roslaunch does.
+std::vector<std::string> buildArgv(const NodeDecl& decl, const std::string& executable, const PackageLocator& locate);
+
+}  // namespace anyscale_agent

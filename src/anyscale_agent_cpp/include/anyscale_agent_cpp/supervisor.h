@@ -1,0 +1,130 @@
+// Process supervisor: fork/exec of node processes in their own session, staged stop, reaping.
+#pragma once
+
+#include <chrono>
+#include <signal.h>
+
+#include <condition_variable>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace anyscale_agent
+{
+
+enum class ProcState
+{
+  Starting,      // forked and exec'd; not yet seen registered (the ROS layer calls markRunning)
+  Running,
+  Stopping,      // SIGINT / SIGTERM / SIGKILL sequence under way
+  Exited,        // ended by itself or by a stop
+  Replaced,      // ended because a same-name node registered elsewhere (set by the ROS layer)
+  LeaseExpired,  // stopped because its lease ran out
+};
+const char* toString(ProcState s);
+
+struct ProcessInfo
+{
+  std::string name;
+  int pid = 0;  // also its process group id; 0 once it has exited
+  ProcState state = ProcState::Starting;
+  int exit_code = -1;   // exit status when it exited normally
+  int exit_signal = 0;  // signal that ended it
+  bool stop_requested = false;
+  std::string log_file;
+  std::chrono::steady_clock::time_point started;
+};
+
+struct SupervisorOptions
+{
+  // roslaunch's defaults (_TIMEOUT_SIGINT = 15 s, _TIMEOUT_SIGTERM = 2 s): a node gets time to
+  // shut down cleanly (unregister from the master) before harsher signals.
+  double sigint_timeout_s = 15.0;
+  double sigterm_timeout_s = 2.0;
+  // Become a child subreaper (prctl), so grandchildren a node leaves behind are re-parented to
+  // the agent and reaped by it rather than by init, out of our sight.
+  bool subreaper = true;
+  // Children get this signal if the agent dies without stopping them (SIGKILL, crash): a node
+  // on a remote scale must not outlive the agent that enforces its lease. 0 disables it.
+  int parent_death_signal = SIGTERM;
+};
+
+class Supervisor
+{
+public:
+  explicit Supervisor(SupervisorOptions options = {});
+  // Stops everything still running (the full signal sequence) and reaps it.
+  ~Supervisor();
+  Supervisor(const Supervisor&) = delete;
+  Supervisor& operator=(const Supervisor&) = delete;
+
+  // Starts argv[0] (an absolute path; no PATH search, no shell) with its stdout and stderr
+  // appended to `log_file`, in a new session and process group. Returns the pid, or 0 with the
+  // reason in *error (name in use, log not writable, exec failure with errno text).
+  int start(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
+            std::string* error);
+
+  // Begins the stop sequence; returns at once. `final_state` is what the node shows once gone
+  // (Exited, or LeaseExpired). False if `name` is not alive.
+  bool stop(const std::string& name, ProcState final_state = ProcState::Exited);
+
+  // Waits until `name` is no longer alive, polling itself; false on timeout.
+  bool waitGone(const std::string& name, double timeout_s);
+
+  // Reaps exited children and escalates signals whose timeout passed. Call it often (10 Hz).
+  void poll();
+
+  void markRunning(const std::string& name);
+  // Sets the state a node that already exited shows (e.g. Replaced); false if it is alive.
+  bool setFinalState(const std::string& name, ProcState state);
+
+  std::optional<ProcessInfo> info(const std::string& name) const;
+  std::vector<ProcessInfo> snapshot() const;
+  // Names that exited since the previous call, without a stop request (crash, replacement).
+  std::vector<std::string> takeUnrequestedExits();
+
+  // Stops all processes and waits for them; used on shutdown.
+  void stopAll();
+
+  const SupervisorOptions& options() const { return options_; }
+
+private:
+  struct Group  // a process group still to be cleared of members after its leader exited
+  {
+    int pgid;
+    int stage;  // 0 = nothing sent, 1 = SIGINT sent, 2 = SIGTERM sent, 3 = SIGKILL sent
+    std::chrono::steady_clock::time_point deadline;
+  };
+  struct Record
+  {
+    ProcessInfo info;
+    ProcState final_state = ProcState::Exited;
+    Group group;
+  };
+  static bool isAlive(const Record& r);
+  void escalate(Group& g, std::chrono::steady_clock::time_point now);
+  void reapLocked();
+  int spawn(const std::vector<std::string>& argv, int log_fd, std::string* error);
+  void spawnerLoop();
+
+  SupervisorOptions options_;
+  mutable std::mutex mutex_;
+  std::condition_variable changed_;
+  std::map<std::string, Record> records_;
+  std::vector<Group> orphan_groups_;  // leaders gone, members remain
+  std::vector<std::string> unrequested_exits_;
+
+  // All forks happen on this one thread: the parent-death signal fires when the *thread* that
+  // forked ends, and ROS spinner threads end before the agent has stopped its children.
+  std::mutex spawn_mutex_;
+  std::condition_variable spawn_cv_;
+  std::function<void()> spawn_job_;
+  bool spawner_quit_ = false;
+  std::thread spawner_;
+};
+
+}  // namespace anyscale_agent

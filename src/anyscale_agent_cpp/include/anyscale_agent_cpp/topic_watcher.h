@@ -1,0 +1,74 @@
+// Type-agnostic rate counters for the topics the agent is told to watch on its scale.
+#pragma once
+
+#include <ros/callback_queue_interface.h>
+#include <ros/ros.h>
+#include <topic_tools/shape_shifter.h>
+
+#include <anyscale_msgs/TopicStatistics.h>
+
+#include <map>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "anyscale_agent_cpp/rate_window.h"
+
+namespace anyscale_agent
+{
+
+// Runs each counter callback at once, in the roscpp network thread that read the message.
+// Through a normal queue every message costs a wake-up of a spinner thread, which profiling
+// showed to be most of the agent's CPU at a few hundred messages per second; the counter's
+// work (a mutex and a deque push) is far cheaper than that hand-off.
+class InlineCallbackQueue : public ros::CallbackQueueInterface
+{
+public:
+  void addCallback(const ros::CallbackInterfacePtr& callback, uint64_t owner_id) override;
+  void removeByID(uint64_t owner_id) override;
+};
+
+class TopicWatcher
+{
+public:
+  // Subscriptions use topic_tools::ShapeShifter, so nothing is deserialised: the counter sees
+  // the serialized size and the receipt time only.
+  TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all);
+
+  // The topics to watch (resolved names). Topics are validated here; returns false with the
+  // offending name in *error and changes nothing.
+  bool setWatched(const std::vector<std::string>& topics, std::string* error);
+  std::vector<std::string> watched() const;
+
+  // Subscribes to the watched topics that a node on this scale subscribes to (`local_topics`),
+  // or to all of them with watch_all, and drops the rest: subscribing here to a topic no local
+  // node uses would pull its data across the link only to count it.
+  void update(const std::set<std::string>& local_topics);
+
+  std::vector<anyscale_msgs::TopicStatistics> stats(const ros::Time& now);
+
+private:
+  struct Counter
+  {
+    explicit Counter(double window_s) : window(window_s) {}
+    std::mutex mutex;
+    RateWindow window;
+    std::string datatype;
+    ros::Subscriber sub;
+  };
+  void subscribe(const std::string& topic, const std::shared_ptr<Counter>& c);
+
+  InlineCallbackQueue inline_queue_;
+  ros::NodeHandle nh_;
+  double window_s_;
+  int queue_size_;
+  bool watch_all_;
+  mutable std::mutex mutex_;
+  std::vector<std::string> watched_;
+  std::set<std::string> local_topics_;
+  std::map<std::string, std::shared_ptr<Counter>> counters_;  // subscribed topics only
+};
+
+}  // namespace anyscale_agent

@@ -1,0 +1,279 @@
+// The agent's setup, timers, status message and diagnostics; services are in agent_services.cpp.
+#include "anyscale_agent_cpp/agent_node.h"
+
+#include <ros/package.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+
+namespace anyscale_agent
+{
+namespace
+{
+template <typename T>
+T param(const ros::NodeHandle& pnh, const std::string& name, const T& fallback)
+{
+  T value;
+  pnh.param<T>(name, value, fallback);
+  return value;
+}
+
+double positive(const ros::NodeHandle& pnh, const std::string& name, double fallback)
+{
+  const double v = param(pnh, name, fallback);
+  if (!(v > 0.0) || !std::isfinite(v))
+    throw std::runtime_error("parameter ~" + name + " must be a positive number of seconds/Hz, got " +
+                             std::to_string(v));
+  return v;
+}
+
+SupervisorOptions supervisorOptions(const ros::NodeHandle& pnh)
+{
+  SupervisorOptions o;
+  o.sigint_timeout_s = positive(pnh, "sigint_timeout_s", o.sigint_timeout_s);
+  o.sigterm_timeout_s = positive(pnh, "sigterm_timeout_s", o.sigterm_timeout_s);
+  return o;
+}
+
+std::string defaultLogDir(const std::string& scale)
+{
+  // roslaunch's order: ROS_LOG_DIR, then ROS_HOME/log, then ~/.ros/log.
+  std::string base;
+  if (const char* d = std::getenv("ROS_LOG_DIR"))
+    base = d;
+  else if (const char* h = std::getenv("ROS_HOME"))
+    base = std::string(h) + "/log";
+  else if (const char* home = std::getenv("HOME"))
+    base = std::string(home) + "/.ros/log";
+  else
+    base = "/tmp";
+  return base + "/anyscale/" + scale;
+}
+
+uint8_t toMsgState(ProcState s)
+{
+  switch (s)
+  {
+    case ProcState::Starting: return anyscale_msgs::NodeProcess::STARTING;
+    case ProcState::Running: return anyscale_msgs::NodeProcess::RUNNING;
+    case ProcState::Stopping: return anyscale_msgs::NodeProcess::STOPPING;
+    case ProcState::Exited: return anyscale_msgs::NodeProcess::EXITED;
+    case ProcState::Replaced: return anyscale_msgs::NodeProcess::REPLACED;
+    case ProcState::LeaseExpired: return anyscale_msgs::NodeProcess::LEASE_EXPIRED;
+  }
+  return anyscale_msgs::NodeProcess::EXITED;
+}
+}  // namespace
+
+AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
+  : nh_(nh), pnh_(pnh), supervisor_(supervisorOptions(pnh))
+{
+  const std::string node_name = ros::this_node::getName();
+  const std::string prefix = "/anyscale_agent_";
+  scale_ = param<std::string>(pnh_, "scale", node_name.rfind(prefix, 0) == 0 ? node_name.substr(prefix.size()) : "");
+  if (!isValidPackageName(scale_))
+    throw std::runtime_error("parameter ~scale must be a scale name of the model (letters, digits, '_'), got '" +
+                             scale_ + "'");
+  if (node_name != prefix + scale_)
+    ROS_WARN("agent node is named %s; the convention is %s%s", node_name.c_str(), prefix.c_str(), scale_.c_str());
+  is_master_ = param(pnh_, "is_master", false);
+  if (!pnh_.getParam("model", model_path_))
+    throw std::runtime_error("parameter ~model (path of the system model YAML) is required");
+  model_ = NodeModel::load(model_path_);  // ModelError is a runtime_error naming file and key
+  log_dir_ = param<std::string>(pnh_, "log_dir", defaultLogDir(scale_));
+  std::error_code ec;
+  std::filesystem::create_directories(log_dir_, ec);
+  if (ec)
+    throw std::runtime_error("cannot create ~log_dir '" + log_dir_ + "': " + ec.message());
+  clear_params_ = param(pnh_, "clear_params", true);
+  sample_period_s_ = 1.0 / positive(pnh_, "sample_rate_hz", 2.0);
+
+  topics_ = std::make_unique<TopicWatcher>(nh_, positive(pnh_, "rate_window_s", 2.0),
+                                           std::max(1, param(pnh_, "topic_queue_size", 50)),
+                                           param(pnh_, "watch_all", false));
+  std::string error;
+  if (!topics_->setWatched(param(pnh_, "watched_topics", std::vector<std::string>{}), &error))
+    throw std::runtime_error("parameter ~watched_topics: " + error);
+
+  LinkOptions link;
+  link.probe_period_s = positive(pnh_, "link_probe_period_s", link.probe_period_s);
+  link.timeout_s = positive(pnh_, "link_timeout_s", link.timeout_s);
+  link.bulk_bytes = std::max(0, param(pnh_, "link_bulk_bytes", link.bulk_bytes));
+  link.bulk_period_s = positive(pnh_, "link_bulk_period_s", link.bulk_period_s);
+  link_ = std::make_unique<LinkMonitor>(nh_, scale_, is_master_, param<std::string>(pnh_, "master_scale", ""), link);
+
+  status_pub_ = nh_.advertise<anyscale_msgs::ScaleStatus>("/anyscale/status", 10);
+  const std::string ns = "/anyscale/" + scale_ + "/";
+  services_.push_back(nh_.advertiseService(ns + "start_node", &AgentNode::onStart, this));
+  services_.push_back(nh_.advertiseService(ns + "stop_node", &AgentNode::onStop, this));
+  services_.push_back(nh_.advertiseService(ns + "renew_leases", &AgentNode::onRenew, this));
+  services_.push_back(nh_.advertiseService(ns + "list_nodes", &AgentNode::onList, this));
+  services_.push_back(nh_.advertiseService(ns + "set_watched_topics", &AgentNode::onSetWatched, this));
+
+  sample_timer_ = nh_.createSteadyTimer(ros::WallDuration(sample_period_s_), &AgentNode::onSample, this);
+  ros::NodeHandle supervise_nh(nh_), graph_nh(nh_);
+  supervise_nh.setCallbackQueue(&supervise_queue_);
+  graph_nh.setCallbackQueue(&graph_queue_);
+  supervise_timer_ = supervise_nh.createSteadyTimer(ros::WallDuration(0.1), &AgentNode::onSupervise, this);
+  graph_timer_ = graph_nh.createSteadyTimer(ros::WallDuration(positive(pnh_, "graph_period_s", 1.0)),
+                                            &AgentNode::onGraph, this);
+
+  diagnostics_.setHardwareID(scale_);
+  diagnostics_.add("nodes", this, &AgentNode::diagnoseNodes);
+  diagnostics_.add("scale", this, &AgentNode::diagnoseScale);
+  diagnostics_.add("link", this, &AgentNode::diagnoseLink);
+  diagnostics_.add("topics", this, &AgentNode::diagnoseTopics);
+
+  sampler_.sample(steadyNow(), {});
+  ROS_INFO("anyscale agent of scale '%s'%s: %zu nodes declared in %s, logs in %s", scale_.c_str(),
+           is_master_ ? " (master)" : "", model_.names().size(), model_path_.c_str(), log_dir_.c_str());
+}
+
+AgentNode::~AgentNode()
+{
+  sample_timer_.stop();
+  supervise_timer_.stop();
+  graph_timer_.stop();
+  supervisor_.stopAll();
+}
+
+void AgentNode::spin()
+{
+  ros::AsyncSpinner services_and_sampling(3);
+  ros::AsyncSpinner supervision(1, &supervise_queue_);
+  ros::AsyncSpinner graph(1, &graph_queue_);
+  services_and_sampling.start();
+  supervision.start();
+  graph.start();
+  ros::waitForShutdown();
+  ROS_INFO("anyscale agent of scale '%s' stopping the nodes it started", scale_.c_str());
+  supervisor_.stopAll();
+}
+
+double AgentNode::steadyNow()
+{
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+std::string AgentNode::locatePackage(const std::string& package) const
+{
+  // rospack prints an error for an unknown package and returns ""; that is our "not found".
+  return ros::package::getPath(package);
+}
+
+void AgentNode::onSupervise(const ros::SteadyTimerEvent&)
+{
+  supervisor_.poll();
+  std::vector<std::string> expired;
+  {
+    std::lock_guard<std::mutex> lock(leases_mutex_);
+    expired = leases_.takeExpired(steadyNow());
+  }
+  for (const auto& name : expired)
+    if (supervisor_.stop(name, ProcState::LeaseExpired))
+      ROS_WARN("lease of %s expired: stopping it", name.c_str());
+}
+
+void AgentNode::onGraph(const ros::SteadyTimerEvent&)
+{
+  std::set<std::string> own;
+  for (const auto& p : supervisor_.snapshot())
+  {
+    if (p.pid != 0)
+      own.insert(p.name);
+    if (p.state != ProcState::Starting)
+      continue;
+    // The registered process may be a child of the one we started (a wrapper script), so any
+    // member of its process group counts.
+    const auto reg = graph_.lookup(p.name);
+    if (reg && reg->host == graph_.host() && reg->pid > 0 && (reg->pid == p.pid || ::getpgid(reg->pid) == p.pid))
+      supervisor_.markRunning(p.name);
+  }
+  for (const auto& name : supervisor_.takeUnrequestedExits())
+  {
+    // The master tells the older of two same-name nodes to shut down. If someone alive holds
+    // the name now, ours was replaced; a stale entry of our dead process does not answer.
+    const auto info = supervisor_.info(name);
+    const auto reg = graph_.lookup(name);
+    if (info && reg && reg->pid != 0)
+    {
+      supervisor_.setFinalState(name, ProcState::Replaced);
+      ROS_WARN("%s exited: its name was taken by a node on %s (pid %d)", name.c_str(), reg->host.c_str(), reg->pid);
+    }
+    else if (info)
+    {
+      ROS_WARN("%s exited by itself (code %d, signal %d); log: %s", name.c_str(), info->exit_code, info->exit_signal,
+               info->log_file.c_str());
+    }
+    std::lock_guard<std::mutex> lock(leases_mutex_);
+    leases_.remove(name);
+  }
+  if (const auto local = graph_.localSubscribedTopics(own))
+    topics_->update(*local);
+}
+
+std::vector<anyscale_msgs::NodeProcess> AgentNode::nodeProcesses()
+{
+  const ros::Time now = ros::Time::now();
+  const auto steady = std::chrono::steady_clock::now();
+  const double steady_s = steadyNow();
+  std::vector<anyscale_msgs::NodeProcess> out;
+  std::lock_guard<std::mutex> lock(leases_mutex_);
+  for (const auto& p : supervisor_.snapshot())
+  {
+    anyscale_msgs::NodeProcess m;
+    m.name = p.name;
+    m.pid = p.pid;
+    m.state = toMsgState(p.state);
+    m.exit_code = p.exit_code;
+    m.exit_signal = p.exit_signal;
+    if (p.pid != 0)
+      if (const auto g = sampler_.group(p.pid))
+      {
+        m.cpu_percent = float(g->cpu_percent);
+        m.rss_bytes = g->rss_bytes;
+      }
+    const double age = std::chrono::duration<double>(steady - p.started).count();
+    m.started = now - ros::Duration(std::min(age, now.toSec()));
+    if (const auto expiry = leases_.expiry(p.name))
+      m.lease_expiry = now + ros::Duration(std::max(0.0, *expiry - steady_s));
+    m.log_file = p.log_file;
+    out.push_back(m);
+  }
+  return out;
+}
+
+void AgentNode::onSample(const ros::SteadyTimerEvent&)
+{
+  std::vector<int> pgids;
+  for (const auto& p : supervisor_.snapshot())
+    if (p.pid != 0)
+      pgids.push_back(p.pid);
+  anyscale_msgs::ScaleStatus s;
+  {
+    std::lock_guard<std::mutex> lock(sample_mutex_);
+    sampler_.sample(steadyNow(), pgids);
+    const ScaleUsage& u = sampler_.scale();
+    s.header.stamp = ros::Time::now();
+    s.scale = scale_;
+    s.is_master = is_master_;
+    s.cores = u.cores;
+    s.cpu_max_ghz = float(u.cpu_max_ghz);
+    s.cpu_quota_cores = float(u.quota_cores);
+    s.cpu_percent = float(u.cpu_percent);
+    s.memory_total_bytes = u.memory_total_bytes;
+    s.memory_available_bytes = u.memory_available_bytes;
+    s.sample_period_s = float(sampler_.periodSeconds());
+    s.nodes = nodeProcesses();
+    s.topics = topics_->stats(s.header.stamp);
+    s.link = link_->stats();
+    last_status_ = s;
+  }
+  status_pub_.publish(s);
+  diagnostics_.update();
+}
+
+}  // namespace anyscale_agent

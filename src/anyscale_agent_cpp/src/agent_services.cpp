@@ -1,0 +1,189 @@
+// The agent's services: start, stop, renew leases, list nodes, set watched topics.
+#include "anyscale_agent_cpp/agent_node.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+
+#include "anyscale_agent_cpp/param_loader.h"
+
+namespace anyscale_agent
+{
+namespace
+{
+std::string qualified(const std::string& name)
+{
+  return !name.empty() && name[0] == '/' ? name : "/" + name;
+}
+
+std::string join(const std::vector<std::string>& v)
+{
+  std::string out;
+  for (const auto& s : v)
+    out += (out.empty() ? "" : ", ") + s;
+  return out;
+}
+}  // namespace
+
+bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::StartNode::Response& res)
+{
+  res.success = false;
+  res.pid = 0;
+  // Everything is checked, and every path resolved, before anything is written or forked.
+  const NodeDecl* decl = isValidNodeName(req.node) || (req.node.size() > 1 && isValidNodeName(req.node.substr(1)))
+                             ? model_.find(req.node)
+                             : nullptr;
+  if (!decl)
+  {
+    res.message = "refused: node '" + req.node + "' is not declared in the model " + model_path_ +
+                  " (declared: " + join(model_.names()) + ")";
+    ROS_WARN("start_node %s", res.message.c_str());
+    return true;
+  }
+  if (!std::isfinite(req.lease_s) || req.lease_s < 0.0f)
+  {
+    res.message = "refused: lease_s must be >= 0 seconds (0 = no lease), got " + std::to_string(req.lease_s);
+    return true;
+  }
+  std::map<std::string, std::string> overrides;
+  for (const auto& kv : req.param_overrides)
+    if (!overrides.emplace(kv.key, kv.value).second)
+    {
+      res.message = "refused: param override '" + kv.key + "' given twice";
+      return true;
+    }
+  const std::string name = qualified(decl->name);
+  const PackageLocator locate = [this](const std::string& p) { return locatePackage(p); };
+  std::vector<std::string> argv;
+  try
+  {
+    const std::string exe = resolveExecutable(decl->package, decl->type, catkinPrefixes(std::getenv("CMAKE_PREFIX_PATH")), locate);
+    argv = buildArgv(*decl, exe, locate);
+    if (const auto running = supervisor_.info(name); running && running->pid != 0)
+    {
+      res.message = "refused: " + name + " is already running here (pid " + std::to_string(running->pid) + ")";
+      return true;
+    }
+    setNodeParams(decl->name, decl->params, overrides, locate, clear_params_);
+  }
+  catch (const ModelError& e)
+  {
+    res.message = "refused: " + name + ": " + e.what();
+    ROS_WARN("start_node %s", res.message.c_str());
+    return true;
+  }
+  std::string file_name = decl->name;
+  std::replace(file_name.begin(), file_name.end(), '/', '.');
+  const std::string log_file = log_dir_ + "/" + file_name + ".log";
+  std::string error;
+  const int pid = supervisor_.start(name, argv, log_file, &error);
+  if (pid <= 0)
+  {
+    res.message = "failed: " + name + ": " + error;
+    ROS_ERROR("start_node %s", res.message.c_str());
+    return true;
+  }
+  {
+    std::lock_guard<std::mutex> lock(leases_mutex_);
+    leases_.grant(name, steadyNow(), req.lease_s);
+  }
+  res.success = true;
+  res.pid = pid;
+  res.message = "started " + name + " (pid " + std::to_string(pid) + ") from " + argv[0] + "; log " + log_file +
+                (req.lease_s > 0.0f ? "; lease " + std::to_string(req.lease_s) + " s" : "");
+  ROS_INFO("%s", res.message.c_str());
+  return true;
+}
+
+bool AgentNode::onStop(anyscale_msgs::StopNode::Request& req, anyscale_msgs::StopNode::Response& res)
+{
+  const std::string name = qualified(req.node);
+  res.success = false;
+  res.exit_code = -1;
+  res.exit_signal = 0;
+  {
+    std::lock_guard<std::mutex> lock(leases_mutex_);
+    leases_.remove(name);
+  }
+  const auto before = supervisor_.info(name);
+  if (!before || before->pid == 0)
+  {
+    res.message = name + " is not running on scale " + scale_ +
+                  (before ? " (it " + std::string(toString(before->state)) + ")" : "");
+    if (before)
+    {
+      res.exit_code = before->exit_code;
+      res.exit_signal = before->exit_signal;
+    }
+    return true;
+  }
+  supervisor_.stop(name);
+  if (!req.wait)
+  {
+    res.success = true;
+    res.message = "stopping " + name + " (pid " + std::to_string(before->pid) + ")";
+    return true;
+  }
+  const auto& o = supervisor_.options();
+  const bool gone = supervisor_.waitGone(name, o.sigint_timeout_s + o.sigterm_timeout_s + 5.0);
+  const auto after = supervisor_.info(name);
+  res.success = gone;
+  if (after)
+  {
+    res.exit_code = after->exit_code;
+    res.exit_signal = after->exit_signal;
+  }
+  res.message = gone ? "stopped " + name : "stop of " + name + " did not finish in time";
+  return true;
+}
+
+bool AgentNode::onRenew(anyscale_msgs::RenewLeases::Request& req, anyscale_msgs::RenewLeases::Response& res)
+{
+  res.success = true;
+  if (!std::isfinite(req.lease_s) || req.lease_s <= 0.0f)
+  {
+    res.success = false;
+    res.message = "lease_s must be > 0 seconds, got " + std::to_string(req.lease_s);
+    res.not_running = req.nodes;
+    return true;
+  }
+  std::vector<std::string> without_lease;
+  const double now = steadyNow();
+  std::lock_guard<std::mutex> lock(leases_mutex_);
+  for (const auto& node : req.nodes)
+  {
+    const std::string name = qualified(node);
+    const auto info = supervisor_.info(name);
+    if (!info || info->pid == 0 || info->state == ProcState::Stopping)
+    {
+      res.not_running.push_back(node);
+      res.success = false;
+    }
+    else if (!leases_.renew(name, now, req.lease_s))
+    {
+      without_lease.push_back(node);  // runs without a lease; renewing must not impose one
+    }
+  }
+  res.message = res.success ? "renewed" : "not running here: " + join(res.not_running);
+  if (!without_lease.empty())
+    res.message += "; running without a lease, unchanged: " + join(without_lease);
+  return true;
+}
+
+bool AgentNode::onList(anyscale_msgs::ListNodes::Request&, anyscale_msgs::ListNodes::Response& res)
+{
+  std::lock_guard<std::mutex> lock(sample_mutex_);
+  res.nodes = nodeProcesses();
+  return true;
+}
+
+bool AgentNode::onSetWatched(anyscale_msgs::SetWatchedTopics::Request& req,
+                             anyscale_msgs::SetWatchedTopics::Response& res)
+{
+  std::string error;
+  res.success = topics_->setWatched(req.topics, &error);
+  res.message = res.success ? "watching " + std::to_string(req.topics.size()) + " topics where a local node subscribes" : error;
+  return true;
+}
+
+}  // namespace anyscale_agent

@@ -1,0 +1,116 @@
+// RTT, loss and bandwidth estimation from probe send/answer times.
+#include "anyscale_agent_cpp/link_estimator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace anyscale_agent
+{
+namespace
+{
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+}
+
+LinkSample::LinkSample() : rtt_s(kNaN), rtt_mean_s(kNaN), bandwidth_mbps(kNaN), last_answer_t(kNaN)
+{
+}
+
+LinkEstimator::LinkEstimator(double timeout_s, std::size_t history, double bandwidth_smoothing)
+  : timeout_s_(timeout_s)
+  , history_(std::max<std::size_t>(history, 1))
+  , smoothing_(std::clamp(bandwidth_smoothing, 0.0, 1.0))
+  , last_rtt_(kNaN)
+  , last_answer_t_(kNaN)
+  , bandwidth_mbps_(kNaN)
+{
+}
+
+void LinkEstimator::sent(uint32_t seq, double t, uint32_t bytes, bool bulk)
+{
+  pending_[seq] = Pending{t, bytes, bulk};
+}
+
+void LinkEstimator::record(double rtt)
+{
+  results_.push_back(rtt);
+  while (results_.size() > history_)
+    results_.pop_front();
+}
+
+void LinkEstimator::answered(uint32_t seq, double t)
+{
+  const auto it = pending_.find(seq);
+  if (it == pending_.end())
+    return;
+  const Pending p = it->second;
+  pending_.erase(it);
+  const double rtt = std::max(0.0, t - p.t);
+  last_answer_t_ = t;
+  if (!p.bulk)
+  {
+    last_rtt_ = rtt;
+    record(rtt);
+    return;
+  }
+  double small = 0.0;
+  std::size_t n = 0;
+  for (double r : results_)
+    if (!std::isnan(r))
+    {
+      small += r;
+      ++n;
+    }
+  small = n ? small / double(n) : 0.0;
+  // 50 us floor: on loopback the difference is within timer noise and would divide by ~0.
+  const double transfer = std::max(rtt - small, 50e-6);
+  const double mbps = 8.0 * double(p.bytes) / transfer / 1e6;
+  // A drop is taken at once and a rise smoothed: the estimate is used to decide whether a node
+  // must move back before its stream stalls, so it must never lag behind a falling link.
+  if (std::isnan(bandwidth_mbps_) || mbps < bandwidth_mbps_)
+    bandwidth_mbps_ = mbps;
+  else
+    bandwidth_mbps_ = smoothing_ * mbps + (1.0 - smoothing_) * bandwidth_mbps_;
+}
+
+void LinkEstimator::expire(double now)
+{
+  for (auto it = pending_.begin(); it != pending_.end();)
+  {
+    if (now - it->second.t > timeout_s_)
+    {
+      if (!it->second.bulk)
+        record(kNaN);
+      it = pending_.erase(it);
+    }
+    else
+    {
+      ++it;
+    }
+  }
+}
+
+LinkSample LinkEstimator::stats(double now)
+{
+  expire(now);
+  LinkSample s;
+  s.rtt_s = last_rtt_;
+  s.last_answer_t = last_answer_t_;
+  s.bandwidth_mbps = bandwidth_mbps_;
+  s.up = !std::isnan(last_answer_t_) && now - last_answer_t_ <= timeout_s_;
+  double sum = 0.0;
+  std::size_t answered = 0;
+  for (double r : results_)
+    if (!std::isnan(r))
+    {
+      sum += r;
+      ++answered;
+    }
+  if (answered)
+    s.rtt_mean_s = sum / double(answered);
+  if (!results_.empty())
+    s.loss_ratio = double(results_.size() - answered) / double(results_.size());
+  return s;
+}
+
+}  // namespace anyscale_agent

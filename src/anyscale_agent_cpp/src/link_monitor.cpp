@@ -1,0 +1,109 @@
+// Link probes: small ones for RTT and loss, bulk ones for a bandwidth estimate.
+#include "anyscale_agent_cpp/link_monitor.h"
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+namespace anyscale_agent
+{
+
+LinkMonitor::LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, std::string master_scale,
+                         LinkOptions options)
+  : scale_(std::move(scale))
+  , is_master_(is_master)
+  , master_scale_(std::move(master_scale))
+  , options_(options)
+  , estimator_(options.timeout_s)
+{
+  const auto hints = ros::TransportHints().tcpNoDelay();
+  if (is_master_)
+  {
+    pub_ = nh.advertise<anyscale_msgs::LinkProbe>("/anyscale/link/echo", 20);
+    sub_ = nh.subscribe("/anyscale/link/probe", 20, &LinkMonitor::onProbe, this, hints);
+    return;
+  }
+  // A short queue: probes queued behind a dead link are stale by the time it returns.
+  pub_ = nh.advertise<anyscale_msgs::LinkProbe>("/anyscale/link/probe", 2);
+  sub_ = nh.subscribe("/anyscale/link/echo", 20, &LinkMonitor::onEcho, this, hints);
+  timer_ = nh.createSteadyTimer(ros::WallDuration(options_.probe_period_s), &LinkMonitor::onTimer, this);
+}
+
+double LinkMonitor::now()
+{
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+void LinkMonitor::onProbe(const anyscale_msgs::LinkProbe::ConstPtr& probe)
+{
+  anyscale_msgs::LinkProbe echo;
+  echo.scale = probe->scale;
+  echo.seq = probe->seq;
+  echo.bulk = probe->bulk;
+  pub_.publish(echo);
+}
+
+void LinkMonitor::onEcho(const anyscale_msgs::LinkProbe::ConstPtr& echo)
+{
+  if (echo->scale != scale_)
+    return;
+  std::lock_guard<std::mutex> lock(mutex_);
+  estimator_.answered(echo->seq, now());
+}
+
+void LinkMonitor::onTimer(const ros::SteadyTimerEvent&)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  const double t = now();
+  // Until the master's agent has been connected once, an unanswered probe says nothing about
+  // the link. After that, a lost connection is a lost probe, not a pause in measuring.
+  const bool connected = pub_.getNumSubscribers() > 0;
+  peer_seen_ = peer_seen_ || connected;
+  if (!connected)
+  {
+    if (peer_seen_)
+      estimator_.sent(++seq_, t, 0, false);
+    return;
+  }
+  anyscale_msgs::LinkProbe probe;
+  probe.scale = scale_;
+  probe.seq = ++seq_;
+  // A bulk probe only when nothing is in flight, so neither waits behind the other.
+  probe.bulk = options_.bulk_bytes > 0 && t - last_bulk_ >= options_.bulk_period_s && !estimator_.outstanding();
+  if (probe.bulk)
+  {
+    probe.payload.resize(std::size_t(options_.bulk_bytes));
+    last_bulk_ = t;
+  }
+  estimator_.sent(probe.seq, t, uint32_t(probe.payload.size()), probe.bulk);
+  pub_.publish(probe);
+}
+
+anyscale_msgs::LinkStatistics LinkMonitor::stats()
+{
+  anyscale_msgs::LinkStatistics m;
+  if (is_master_)
+  {
+    // The master scale has no link to itself.
+    m.up = true;
+    m.rtt_s = m.rtt_mean_s = 0.0f;
+    m.loss_ratio = 0.0f;
+    m.bandwidth_mbps = std::numeric_limits<float>::quiet_NaN();
+    m.last_answer = ros::Time::now();
+    return m;
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  const double t = now();
+  const LinkSample s = estimator_.stats(t);
+  m.peer_scale = master_scale_;
+  m.up = s.up;
+  m.rtt_s = float(s.rtt_s);
+  m.rtt_mean_s = float(s.rtt_mean_s);
+  m.loss_ratio = float(s.loss_ratio);
+  m.bandwidth_mbps = float(s.bandwidth_mbps);
+  if (!std::isnan(s.last_answer_t))
+    m.last_answer = ros::Time::now() - ros::Duration(std::max(0.0, t - s.last_answer_t));
+  return m;
+}
+
+}  // namespace anyscale_agent

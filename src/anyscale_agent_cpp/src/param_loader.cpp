@@ -1,0 +1,119 @@
+// YAML -> XML-RPC conversion and parameter-server writes for node starts.
+#include "anyscale_agent_cpp/param_loader.h"
+
+#include <ros/param.h>
+
+#include <vector>
+
+namespace anyscale_agent
+{
+namespace
+{
+// YAML 1.1 booleans as PyYAML (and so roslaunch) reads them.
+bool parseBool(const std::string& s, bool* out)
+{
+  static const std::vector<std::string> yes{"true", "True", "TRUE", "yes", "Yes", "YES", "on", "On", "ON"};
+  static const std::vector<std::string> no{"false", "False", "FALSE", "no", "No", "NO", "off", "Off", "OFF"};
+  for (const auto& y : yes)
+    if (s == y)
+      return *out = true, true;
+  for (const auto& n : no)
+    if (s == n)
+      return *out = false, true;
+  return false;
+}
+
+XmlRpc::XmlRpcValue scalar(const YAML::Node& node, const PackageLocator& locate)
+{
+  const std::string text = node.Scalar();
+  // A quoted scalar ("1.5") is a string, as in PyYAML; only plain scalars are typed.
+  if (node.Tag() != "!")
+  {
+    try
+    {
+      std::size_t used = 0;
+      const long long i = std::stoll(text, &used, 0);
+      if (used == text.size() && i >= INT32_MIN && i <= INT32_MAX)
+        return XmlRpc::XmlRpcValue(int(i));
+    }
+    catch (const std::exception&)
+    {
+    }
+    try
+    {
+      std::size_t used = 0;
+      const double d = std::stod(text, &used);
+      if (used == text.size())
+        return XmlRpc::XmlRpcValue(d);
+    }
+    catch (const std::exception&)
+    {
+    }
+    bool b;
+    if (parseBool(text, &b))
+      return XmlRpc::XmlRpcValue(b);
+  }
+  return XmlRpc::XmlRpcValue(substituteFind(text, locate));
+}
+}  // namespace
+
+XmlRpc::XmlRpcValue yamlToXmlRpc(const YAML::Node& node, const PackageLocator& locate, const std::string& where)
+{
+  switch (node.Type())
+  {
+    case YAML::NodeType::Scalar:
+      return scalar(node, locate);
+    case YAML::NodeType::Sequence:
+    {
+      XmlRpc::XmlRpcValue v;
+      v.setSize(int(node.size()));
+      for (std::size_t i = 0; i < node.size(); ++i)
+        v[int(i)] = yamlToXmlRpc(node[i], locate, where + "[" + std::to_string(i) + "]");
+      return v;
+    }
+    case YAML::NodeType::Map:
+    {
+      XmlRpc::XmlRpcValue v;
+      v.begin();  // makes an empty struct even for {}
+      for (const auto& kv : node)
+        v[kv.first.as<std::string>()] = yamlToXmlRpc(kv.second, locate, where + "." + kv.first.as<std::string>());
+      return v;
+    }
+    default:
+      throw ModelError(where + ": a null or undefined value cannot be a ROS parameter");
+  }
+}
+
+void setNodeParams(const std::string& node_name, const YAML::Node& params,
+                   const std::map<std::string, std::string>& overrides, const PackageLocator& locate, bool clear_first)
+{
+  const std::string ns = "/" + node_name;
+  std::vector<std::pair<std::string, XmlRpc::XmlRpcValue>> values;
+  if (params && params.IsMap())
+    for (const auto& kv : params)
+    {
+      const std::string key = kv.first.as<std::string>();
+      values.emplace_back(key, yamlToXmlRpc(kv.second, locate, "param '" + key + "'"));
+    }
+  for (const auto& [key, text] : overrides)
+  {
+    if (key.empty() || key[0] == '/' || key[0] == '~' || !isValidNodeName(key))
+      throw ModelError("param override '" + key + "': must be a name relative to the node, e.g. initial_pose_x");
+    YAML::Node parsed;
+    try
+    {
+      parsed = YAML::Load(text);
+    }
+    catch (const YAML::Exception& e)
+    {
+      throw ModelError("param override '" + key + "': value is not YAML: " + e.what());
+    }
+    values.emplace_back(key, yamlToXmlRpc(parsed, locate, "param override '" + key + "'"));
+  }
+  if (clear_first && ros::param::has(ns))
+    ros::param::del(ns);
+  for (const auto& [key, value] : values)
+    ros::param::set(ns + "/" + key, value);
+}
+
+}  // namespace anyscale_agent

@@ -1,0 +1,393 @@
+// fork/exec, staged SIGINT -> SIGTERM -> SIGKILL stop of whole process groups, and reaping.
+#include "anyscale_agent_cpp/supervisor.h"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <thread>
+
+namespace anyscale_agent
+{
+namespace
+{
+using Clock = std::chrono::steady_clock;
+
+Clock::duration seconds(double s)
+{
+  return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(std::max(0.0, s)));
+}
+
+// Closes an fd on scope exit; the parent must not leak log or pipe fds into later children.
+struct Fd
+{
+  int fd = -1;
+  explicit Fd(int f) : fd(f) {}
+  ~Fd()
+  {
+    if (fd >= 0)
+      ::close(fd);
+  }
+  Fd(const Fd&) = delete;
+  Fd& operator=(const Fd&) = delete;
+};
+
+int failSpawn(std::string* error, const std::string& why)
+{
+  if (error)
+    *error = why;
+  return 0;
+}
+
+bool groupExists(int pgid)
+{
+  return ::kill(-pgid, 0) == 0 || errno == EPERM;
+}
+}  // namespace
+
+const char* toString(ProcState s)
+{
+  switch (s)
+  {
+    case ProcState::Starting: return "starting";
+    case ProcState::Running: return "running";
+    case ProcState::Stopping: return "stopping";
+    case ProcState::Exited: return "exited";
+    case ProcState::Replaced: return "replaced";
+    case ProcState::LeaseExpired: return "lease expired";
+  }
+  return "?";
+}
+
+Supervisor::Supervisor(SupervisorOptions options) : options_(options)
+{
+  if (options_.subreaper)
+    ::prctl(PR_SET_CHILD_SUBREAPER, 1);
+  spawner_ = std::thread([this] { spawnerLoop(); });
+}
+
+Supervisor::~Supervisor()
+{
+  stopAll();
+  {
+    std::lock_guard<std::mutex> lock(spawn_mutex_);
+    spawner_quit_ = true;
+  }
+  spawn_cv_.notify_all();
+  spawner_.join();
+}
+
+void Supervisor::spawnerLoop()
+{
+  std::unique_lock<std::mutex> lock(spawn_mutex_);
+  for (;;)
+  {
+    spawn_cv_.wait(lock, [this] { return spawner_quit_ || spawn_job_; });
+    if (spawn_job_)
+    {
+      spawn_job_();
+      spawn_job_ = nullptr;
+      spawn_cv_.notify_all();
+    }
+    else if (spawner_quit_)
+    {
+      return;
+    }
+  }
+}
+
+bool Supervisor::isAlive(const Record& r)
+{
+  return r.info.pid != 0;
+}
+
+int Supervisor::spawn(const std::vector<std::string>& argv, int log_fd, std::string* error)
+{
+  Fd devnull(::open("/dev/null", O_RDONLY | O_CLOEXEC));
+  int pipe_fds[2];
+  if (::pipe2(pipe_fds, O_CLOEXEC) != 0)
+    return failSpawn(error, std::string("pipe2: ") + std::strerror(errno));
+  Fd err_read(pipe_fds[0]), err_write(pipe_fds[1]);
+  const pid_t parent = ::getpid();
+  const int death_signal = options_.parent_death_signal;
+
+  // Everything the child needs is prepared before fork: between fork and exec only
+  // async-signal-safe calls are allowed (the agent is multi-threaded).
+  std::vector<char*> cargv;
+  for (const auto& a : argv)
+    cargv.push_back(const_cast<char*>(a.c_str()));
+  cargv.push_back(nullptr);
+
+  const pid_t pid = ::fork();
+  if (pid < 0)
+    return failSpawn(error, std::string("fork: ") + std::strerror(errno));
+  if (pid == 0)
+  {
+    ::setsid();
+    if (death_signal > 0)
+    {
+      ::prctl(PR_SET_PDEATHSIG, death_signal);
+      if (::getppid() != parent)  // the agent died before prctl took effect
+        ::_exit(127);
+    }
+    // Dispositions set to SIG_IGN (roscpp ignores SIGPIPE) and the signal mask survive exec.
+    for (int sig = 1; sig < NSIG; ++sig)
+      if (sig != SIGKILL && sig != SIGSTOP)
+        ::signal(sig, SIG_DFL);
+    sigset_t none;
+    sigemptyset(&none);
+    ::sigprocmask(SIG_SETMASK, &none, nullptr);
+    ::dup2(devnull.fd, STDIN_FILENO);
+    ::dup2(log_fd, STDOUT_FILENO);
+    ::dup2(log_fd, STDERR_FILENO);
+    // The agent's sockets (its XML-RPC port, topic connections) must not live on in children.
+    const int keep = err_write.fd;
+    if (keep > 3)
+      ::close_range(3, keep - 1, 0);
+    ::close_range(keep + 1, ~0U, 0);
+    ::execv(cargv[0], cargv.data());
+    const int e = errno;
+    ssize_t ignored = ::write(err_write.fd, &e, sizeof e);
+    (void)ignored;
+    ::_exit(127);
+  }
+
+  ::close(err_write.fd);
+  err_write.fd = -1;
+  int child_errno = 0;
+  ssize_t n;
+  do
+    n = ::read(err_read.fd, &child_errno, sizeof child_errno);
+  while (n < 0 && errno == EINTR);
+  if (n == sizeof child_errno)
+  {
+    int status;
+    ::waitpid(pid, &status, 0);
+    return failSpawn(error, "cannot execute '" + argv[0] + "': " + std::strerror(child_errno));
+  }
+
+  return pid;
+}
+
+int Supervisor::start(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
+                      std::string* error)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto fail = [&](const std::string& why) {
+    if (error)
+      *error = why;
+    return 0;
+  };
+  if (argv.empty() || argv[0].empty() || argv[0][0] != '/')
+    return fail("executable must be an absolute path");
+  const auto existing = records_.find(name);
+  if (existing != records_.end() && isAlive(existing->second))
+    return fail("node '" + name + "' is already running here (pid " + std::to_string(existing->second.info.pid) + ")");
+
+  Fd log(::open(log_file.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644));
+  if (log.fd < 0)
+    return fail("cannot open log file '" + log_file + "': " + std::strerror(errno));
+  int child_pid = 0;
+  {
+    std::unique_lock<std::mutex> spawn_lock(spawn_mutex_);
+    spawn_cv_.wait(spawn_lock, [this] { return !spawn_job_; });
+    bool done = false;
+    spawn_job_ = [&] {
+      child_pid = spawn(argv, log.fd, error);
+      done = true;
+    };
+    spawn_cv_.notify_all();
+    spawn_cv_.wait(spawn_lock, [&] { return done; });
+  }
+  if (child_pid <= 0)
+    return 0;
+  const pid_t pid = child_pid;
+
+  Record r;
+  r.info.name = name;
+  r.info.pid = pid;
+  r.info.state = ProcState::Starting;
+  r.info.log_file = log_file;
+  r.info.started = Clock::now();
+  r.group = Group{pid, 0, Clock::time_point::max()};
+  records_[name] = std::move(r);
+  changed_.notify_all();
+  return pid;
+}
+
+bool Supervisor::stop(const std::string& name, ProcState final_state)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = records_.find(name);
+  if (it == records_.end() || !isAlive(it->second))
+    return false;
+  Record& r = it->second;
+  r.info.stop_requested = true;
+  r.final_state = final_state;
+  r.info.state = ProcState::Stopping;
+  if (r.group.stage == 0)
+    escalate(r.group, Clock::now());
+  return true;
+}
+
+void Supervisor::escalate(Group& g, Clock::time_point now)
+{
+  if (g.stage == 0)
+  {
+    ::kill(-g.pgid, SIGINT);
+    g.stage = 1;
+    g.deadline = now + seconds(options_.sigint_timeout_s);
+  }
+  else if (g.stage == 1)
+  {
+    ::kill(-g.pgid, SIGTERM);
+    g.stage = 2;
+    g.deadline = now + seconds(options_.sigterm_timeout_s);
+  }
+  else
+  {
+    ::kill(-g.pgid, SIGKILL);
+    g.stage = 3;
+    g.deadline = now + seconds(1.0);  // re-sent until the group is empty
+  }
+}
+
+void Supervisor::reapLocked()
+{
+  for (;;)
+  {
+    int status = 0;
+    // -1: with the subreaper flag, orphaned members of node groups become our children too.
+    const pid_t pid = ::waitpid(-1, &status, WNOHANG);
+    if (pid <= 0)
+      break;
+    for (auto& [name, r] : records_)
+    {
+      if (r.info.pid != pid)
+        continue;
+      r.info.pid = 0;
+      r.info.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+      r.info.exit_signal = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
+      r.info.state = r.info.stop_requested ? r.final_state : ProcState::Exited;
+      if (!r.info.stop_requested)
+        unrequested_exits_.push_back(name);
+      // Members that outlive the leader are cleared the same way, continuing its sequence.
+      if (groupExists(r.group.pgid))
+        orphan_groups_.push_back(r.group);
+      changed_.notify_all();
+    }
+  }
+}
+
+void Supervisor::poll()
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  reapLocked();
+  const auto now = Clock::now();
+  for (auto& [name, r] : records_)
+    if (isAlive(r) && r.group.stage > 0 && now >= r.group.deadline)
+      escalate(r.group, now);
+  for (auto& g : orphan_groups_)
+    if (g.stage == 0 || now >= g.deadline)
+      escalate(g, now);
+  orphan_groups_.erase(std::remove_if(orphan_groups_.begin(), orphan_groups_.end(),
+                                      [](const Group& g) { return !groupExists(g.pgid); }),
+                       orphan_groups_.end());
+}
+
+bool Supervisor::waitGone(const std::string& name, double timeout_s)
+{
+  const auto deadline = Clock::now() + seconds(timeout_s);
+  for (;;)
+  {
+    poll();
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      const auto it = records_.find(name);
+      if (it == records_.end() || !isAlive(it->second))
+        return true;
+      if (Clock::now() >= deadline)
+        return false;
+      // Woken by another thread's poll(), or after 20 ms to poll ourselves: SIGCHLD is not
+      // used because a handler cannot safely take this mutex.
+      changed_.wait_for(lock, std::chrono::milliseconds(20));
+    }
+  }
+}
+
+void Supervisor::markRunning(const std::string& name)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = records_.find(name);
+  if (it != records_.end() && it->second.info.state == ProcState::Starting)
+    it->second.info.state = ProcState::Running;
+}
+
+bool Supervisor::setFinalState(const std::string& name, ProcState state)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = records_.find(name);
+  if (it == records_.end() || isAlive(it->second))
+    return false;
+  it->second.info.state = state;
+  return true;
+}
+
+std::optional<ProcessInfo> Supervisor::info(const std::string& name) const
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = records_.find(name);
+  if (it == records_.end())
+    return std::nullopt;
+  return it->second.info;
+}
+
+std::vector<ProcessInfo> Supervisor::snapshot() const
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<ProcessInfo> out;
+  for (const auto& [name, r] : records_)
+    out.push_back(r.info);
+  return out;
+}
+
+std::vector<std::string> Supervisor::takeUnrequestedExits()
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<std::string> out;
+  out.swap(unrequested_exits_);
+  return out;
+}
+
+void Supervisor::stopAll()
+{
+  std::vector<std::string> names;
+  for (const auto& p : snapshot())
+    if (p.pid != 0)
+    {
+      stop(p.name);
+      names.push_back(p.name);
+    }
+  const double limit = options_.sigint_timeout_s + options_.sigterm_timeout_s + 5.0;
+  for (const auto& n : names)
+    waitGone(n, limit);
+  // Leftover members of groups whose leader is gone.
+  const auto deadline = Clock::now() + seconds(limit);
+  for (;;)
+  {
+    poll();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (orphan_groups_.empty() || Clock::now() >= deadline)
+        break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+}
+
+}  // namespace anyscale_agent

@@ -1,0 +1,138 @@
+// ShapeShifter subscriptions feeding one RateWindow per watched topic.
+#include "anyscale_agent_cpp/topic_watcher.h"
+
+#include <ros/names.h>
+
+#include <limits>
+
+namespace anyscale_agent
+{
+
+void InlineCallbackQueue::addCallback(const ros::CallbackInterfacePtr& callback, uint64_t)
+{
+  // TryAgain (the subscription queue busy elsewhere) leaves the message queued; the next
+  // arrival calls again and takes it, so nothing is lost.
+  callback->call();
+}
+
+void InlineCallbackQueue::removeByID(uint64_t)
+{
+  // Nothing is ever held here.
+}
+
+TopicWatcher::TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all)
+  : nh_(nh), window_s_(window_s), queue_size_(queue_size), watch_all_(watch_all)
+{
+  nh_.setCallbackQueue(&inline_queue_);
+}
+
+bool TopicWatcher::setWatched(const std::vector<std::string>& topics, std::string* error)
+{
+  std::vector<std::string> resolved;
+  for (const auto& t : topics)
+  {
+    std::string why;
+    if (t.empty() || t[0] != '/' || !ros::names::validate(t, why))
+    {
+      if (error)
+        *error = "topic '" + t + "' is not a valid resolved name (e.g. /scan)" + (why.empty() ? "" : ": " + why);
+      return false;
+    }
+    resolved.push_back(t);
+  }
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    watched_ = resolved;
+  }
+  std::set<std::string> local;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    local = local_topics_;
+  }
+  update(local);
+  return true;
+}
+
+std::vector<std::string> TopicWatcher::watched() const
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  return watched_;
+}
+
+void TopicWatcher::subscribe(const std::string& topic, const std::shared_ptr<Counter>& c)
+{
+  std::weak_ptr<Counter> weak = c;
+  boost::function<void(const ros::MessageEvent<topic_tools::ShapeShifter const>&)> cb =
+      [weak](const ros::MessageEvent<topic_tools::ShapeShifter const>& event) {
+        const auto counter = weak.lock();
+        if (!counter)
+          return;
+        const auto& msg = event.getConstMessage();
+        std::lock_guard<std::mutex> lock(counter->mutex);
+        // Receipt time is stamped by the transport thread when the message arrives.
+        counter->window.add(event.getReceiptTime().toSec(), msg->size());
+        if (counter->datatype.empty())
+          counter->datatype = msg->getDataType();
+      };
+  c->sub = nh_.subscribe<topic_tools::ShapeShifter>(topic, uint32_t(queue_size_), cb, ros::VoidConstPtr(),
+                                                      ros::TransportHints().tcpNoDelay());
+}
+
+void TopicWatcher::update(const std::set<std::string>& local_topics)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  local_topics_ = local_topics;
+  std::set<std::string> wanted;
+  for (const auto& t : watched_)
+    if (watch_all_ || local_topics.count(t))
+      wanted.insert(t);
+  for (auto it = counters_.begin(); it != counters_.end();)
+  {
+    if (!wanted.count(it->first))
+    {
+      it->second->sub.shutdown();
+      it = counters_.erase(it);
+    }
+    else
+    {
+      ++it;
+    }
+  }
+  for (const auto& t : wanted)
+    if (!counters_.count(t))
+    {
+      auto c = std::make_shared<Counter>(window_s_);
+      subscribe(t, c);
+      counters_[t] = c;
+    }
+}
+
+std::vector<anyscale_msgs::TopicStatistics> TopicWatcher::stats(const ros::Time& now)
+{
+  std::map<std::string, std::shared_ptr<Counter>> counters;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    counters = counters_;
+  }
+  std::vector<anyscale_msgs::TopicStatistics> out;
+  for (const auto& [topic, c] : counters)
+  {
+    std::lock_guard<std::mutex> lock(c->mutex);
+    const RateStats s = c->window.stats(now.toSec());
+    anyscale_msgs::TopicStatistics m;
+    m.topic = topic;
+    m.datatype = c->datatype;
+    m.rate_hz = float(s.rate_hz);
+    m.interval_min_s = float(s.interval_min_s);
+    m.interval_max_s = float(s.interval_max_s);
+    m.interval_std_s = float(s.interval_std_s);
+    m.bytes_per_second = float(s.bytes_per_second);
+    m.last_message_age_s = float(s.last_message_age_s);
+    m.window_messages = uint32_t(s.window_messages);
+    m.window_s = float(s.window_s);
+    out.push_back(m);
+  }
+  return out;
+}
+
+}  // namespace anyscale_agent

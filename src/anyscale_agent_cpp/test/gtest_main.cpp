@@ -1,0 +1,8 @@
+// gtest entry point (catkin_add_gtest links gtest, not gtest_main).
+#include <gtest/gtest.h>
+
+int main(int argc, char** argv)
+{
+  testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}

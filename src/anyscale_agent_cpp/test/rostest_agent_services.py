@@ -1,0 +1,177 @@
+#!/usr/bin/python3
+"""rostest: node start/stop through the agent's services, refusals, leases, agent shutdown."""
+import os
+import signal
+import subprocess
+import sys
+import time
+import unittest
+
+import psutil
+import rospy
+import rostest
+from anyscale_msgs.msg import NodeProcess
+from diagnostic_msgs.msg import KeyValue
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from agent_test_util import Agent, registered_pid, wait_for  # noqa: E402
+
+def alive(pid):
+    """True while the process exists and is not a zombie waiting for a reaper."""
+    try:
+        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return False
+
+
+MODEL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "config", "test_model.yaml")
+
+
+class AgentServicesTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node("agent_services_test")
+        cls.agent = Agent("robot")
+
+    def _start(self, node, lease_s=0.0, overrides=()):
+        kv = [KeyValue(key=k, value=v) for k, v in overrides]
+        return self.agent.start(node=node, param_overrides=kv, lease_s=lease_s)
+
+    def test_start_stop_rospy_and_roscpp_nodes(self):
+        for node in ("talker_py", "talker_cpp"):
+            res = self._start(node)
+            self.assertTrue(res.success, res.message)
+            # Registered with the master under its own name, by the process the agent started.
+            self.assertEqual(wait_for(lambda: registered_pid("/" + node), 20.0), res.pid, node)
+            self.assertTrue(wait_for(lambda: self.agent.node("/" + node).state == NodeProcess.RUNNING, 10.0))
+            info = self.agent.node("/" + node)
+            self.assertTrue(os.path.exists(info.log_file), info.log_file)
+            self.assertEqual(self._start(node).success, False)  # already running
+            stop = self.agent.stop(node=node, wait=True)
+            self.assertTrue(stop.success, stop.message)
+            self.assertFalse(alive(res.pid))
+            self.assertEqual(self.agent.node("/" + node).state, NodeProcess.EXITED)
+            # Clean SIGINT shutdown: the node unregistered itself.
+            self.assertTrue(wait_for(lambda: registered_pid("/" + node) is None, 5.0))
+
+    def test_params_remaps_and_overrides(self):
+        res = self._start("talker_py", overrides=[("rate", "7.5"), ("extra", "{a: [1, 2]}")])
+        self.assertTrue(res.success, res.message)
+        try:
+            self.assertEqual(rospy.get_param("/talker_py/rate"), 7.5)
+            self.assertEqual(rospy.get_param("/talker_py/extra"), {"a": [1, 2]})
+            # $(find) substituted as roslaunch does.
+            self.assertTrue(rospy.get_param("/talker_py/text").endswith("anyscale_agent_cpp"))
+            self.assertTrue(wait_for(lambda: registered_pid("/talker_py"), 20.0))
+            # The model's remap chatter:=/py_chatter is in effect.
+            from std_msgs.msg import String
+            msg = rospy.wait_for_message("/py_chatter", String, timeout=10.0)
+            self.assertTrue(msg.data.endswith("anyscale_agent_cpp"))
+        finally:
+            self.agent.stop(node="talker_py", wait=True)
+        # Next start without overrides: clear_params drops the old hand-off values.
+        res = self._start("talker_py")
+        try:
+            self.assertEqual(rospy.get_param("/talker_py/rate"), 20.0)
+            self.assertFalse(rospy.has_param("/talker_py/extra"))
+        finally:
+            self.agent.stop(node="talker_py", wait=True)
+
+    def test_refusals_say_why(self):
+        cases = [
+            ("teleop", "not declared"),
+            ("../talker_py", "not declared"),
+            ("/bin/sh", "not declared"),
+            ("talker_py; rm -rf /", "not declared"),
+            ("no_binary", "no executable 'does_not_exist'"),
+            ("no_package", "package 'anyscale_no_such_package' not found"),
+        ]
+        for node, why in cases:
+            res = self._start(node)
+            self.assertFalse(res.success, node)
+            self.assertEqual(res.pid, 0)
+            self.assertIn(why, res.message, node)
+        res = self._start("talker_py", lease_s=-1.0)
+        self.assertFalse(res.success)
+        self.assertIn("lease_s", res.message)
+        res = self._start("talker_py", overrides=[("/abs", "1")])
+        self.assertFalse(res.success)
+        self.assertIn("relative to the node", res.message)
+        self.assertIsNone(registered_pid("/talker_py"))
+        stop = self.agent.stop(node="teleop", wait=True)
+        self.assertFalse(stop.success)
+
+    def test_lease_renewed_keeps_running_then_expires(self):
+        res = self._start("talker_cpp", lease_s=2.0)
+        self.assertTrue(res.success, res.message)
+        try:
+            self.assertGreater(self.agent.node("/talker_cpp").lease_expiry.to_sec(), 0.0)
+            for _ in range(4):  # 4 s of renewals past a 2 s lease
+                time.sleep(1.0)
+                r = self.agent.renew(nodes=["talker_cpp"], lease_s=2.0)
+                self.assertTrue(r.success, r.message)
+            self.assertTrue(alive(res.pid))
+            bad = self.agent.renew(nodes=["talker_cpp", "ghost"], lease_s=2.0)
+            self.assertFalse(bad.success)
+            self.assertEqual(bad.not_running, ["ghost"])
+            # No more renewals: stopped by the agent itself.
+            self.assertTrue(wait_for(lambda: self.agent.node("/talker_cpp").state == NodeProcess.LEASE_EXPIRED, 10.0))
+            self.assertTrue(wait_for(lambda: not alive(res.pid), 5.0))
+            self.assertTrue(wait_for(lambda: registered_pid("/talker_cpp") is None, 5.0))
+        finally:
+            self.agent.stop(node="talker_cpp", wait=True)
+
+    def test_agent_shutdown_leaves_no_process(self):
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+            scale = "shutdown_%d" % sig
+            agent_proc = subprocess.Popen(
+                [self._agent_binary(), "__name:=anyscale_agent_" + scale, "_scale:=" + scale,
+                 "_model:=" + MODEL, "_sigint_timeout_s:=3.0"],
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            try:
+                other = Agent(scale)
+                pids = []
+                for node in ("talker_py", "burner"):
+                    res = other.start(node=node, param_overrides=[], lease_s=0.0)
+                    self.assertTrue(res.success, res.message)
+                    pids.append(res.pid)
+                self.assertTrue(wait_for(lambda: registered_pid("/burner"), 20.0))
+                children = [c.pid for p in pids for c in psutil.Process(p).children(recursive=True)]
+                agent_proc.send_signal(sig)
+                agent_proc.wait(timeout=30)
+                self.assertTrue(wait_for(lambda: not any(alive(p) for p in pids + children), 15.0),
+                                "signal %d left %s" % (sig, [p for p in pids + children if alive(p)]))
+            finally:
+                if agent_proc.poll() is None:
+                    agent_proc.kill()
+                    agent_proc.wait()
+
+    def test_bad_model_is_a_clear_error(self):
+        no_nodes = "/tmp/anyscale_agent_test_no_nodes_%d.yaml" % os.getpid()
+        with open(no_nodes, "w") as f:
+            f.write("scales: []\n")
+        self.addCleanup(os.remove, no_nodes)
+        bad_name = "/tmp/anyscale_agent_test_bad_name_%d.yaml" % os.getpid()
+        with open(bad_name, "w") as f:
+            f.write("nodes: [{name: x, launch: {package: p, type: ../../bin/sh}}]\n")
+        self.addCleanup(os.remove, bad_name)
+        for model, expected in (("/nonexistent/model.yaml", "/nonexistent/model.yaml: cannot read YAML"),
+                                (no_nodes, no_nodes + ": expected a map with a 'nodes' list"),
+                                (bad_name, bad_name + ": node 'x': launch.type '../../bin/sh' must be")):
+            proc = subprocess.run([self._agent_binary(), "__name:=anyscale_agent_bad", "_scale:=bad",
+                                   "_model:=" + model], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                  timeout=30, text=True)
+            self.assertEqual(proc.returncode, 1, proc.stdout)
+            self.assertIn(expected, proc.stdout)
+
+    @staticmethod
+    def _agent_binary():
+        from catkin.find_in_workspaces import find_in_workspaces
+        found = find_in_workspaces(["libexec"], project="anyscale_agent_cpp", path="anyscale_agent",
+                                   first_matching_workspace_only=True)
+        assert found, "anyscale_agent binary not built"
+        return found[0]
+
+
+if __name__ == "__main__":
+    rostest.rosrun("anyscale_agent_cpp", "agent_services", AgentServicesTest, sys.argv)

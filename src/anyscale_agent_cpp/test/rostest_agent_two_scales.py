@@ -1,0 +1,84 @@
+#!/usr/bin/python3
+"""rostest: two agents on one box: link statistics up and down, and a node replaced by a
+same-name start on the other scale."""
+import math
+import os
+import subprocess
+import sys
+import time
+import unittest
+
+import rospy
+import rostest
+from anyscale_msgs.msg import NodeProcess
+from std_msgs.msg import String
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from agent_test_util import Agent, registered_pid, wait_for  # noqa: E402
+
+MODEL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "config", "test_model.yaml")
+
+
+def agent_binary():
+    from catkin.find_in_workspaces import find_in_workspaces
+    return find_in_workspaces(["libexec"], project="anyscale_agent_cpp", path="anyscale_agent",
+                              first_matching_workspace_only=True)[0]
+
+
+class TwoScalesTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        rospy.init_node("agent_two_scales_test")
+        cls.laptop = Agent("laptop")
+
+    def _start_master(self):
+        proc = subprocess.Popen([agent_binary(), "__name:=anyscale_agent_robot", "_scale:=robot", "_is_master:=true",
+                                 "_model:=" + MODEL, "_sigint_timeout_s:=3.0"],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self.addCleanup(lambda: proc.poll() is not None or (proc.terminate(), proc.wait()))
+        return proc
+
+    def _link(self):
+        return self.laptop.statuses[-1].link if self.laptop.statuses else None
+
+    def test_link_up_down_up(self):
+        master = self._start_master()
+        self.assertTrue(wait_for(lambda: self._link() and self._link().up, 15.0), "link never came up")
+        # A bulk probe every second: the estimate appears within a few seconds.
+        self.assertTrue(wait_for(lambda: not math.isnan(self._link().bandwidth_mbps), 10.0))
+        link = self._link()
+        self.assertEqual(link.peer_scale, "robot")
+        self.assertLess(link.rtt_mean_s, 0.1)
+        self.assertGreater(link.rtt_s, 0.0)
+        self.assertGreater(link.bandwidth_mbps, 1.0)  # loopback: far above any WiFi
+        master.terminate()
+        master.wait(timeout=20)
+        self.assertTrue(wait_for(lambda: not self._link().up, 5.0), "link still up with the master agent gone")
+        self.assertTrue(wait_for(lambda: self._link().loss_ratio > 0.0, 5.0))
+        self._start_master()
+        self.assertTrue(wait_for(lambda: self._link().up, 15.0), "link did not come back")
+
+    def test_same_name_elsewhere_replaces(self):
+        # A rospy node: an old roscpp node, while shutting down, bumps the new one off the
+        # master as well (ros/ros_comm#2018), so both end; see the README.
+        self._start_master()
+        robot = Agent("robot")
+        first = robot.start(node="talker_py", param_overrides=[], lease_s=0.0)
+        self.assertTrue(first.success, first.message)
+        self.assertEqual(wait_for(lambda: registered_pid("/talker_py"), 20.0), first.pid)
+        rospy.wait_for_message("/py_chatter", String, timeout=10.0)
+        self.assertTrue(wait_for(lambda: robot.node("/talker_py").state == NodeProcess.RUNNING, 10.0))
+        second = self.laptop.start(node="talker_py", param_overrides=[], lease_s=10.0)
+        self.assertTrue(second.success, second.message)
+        try:
+            self.assertEqual(wait_for(lambda: registered_pid("/talker_py") == second.pid and second.pid, 20.0),
+                             second.pid)
+            self.assertTrue(wait_for(lambda: robot.node("/talker_py").state == NodeProcess.REPLACED, 10.0),
+                            "state %d" % robot.node("/talker_py").state)
+        finally:
+            self.laptop.stop(node="talker_py", wait=True)
+            robot.stop(node="talker_py", wait=True)
+
+
+if __name__ == "__main__":
+    rostest.rosrun("anyscale_agent_cpp", "agent_two_scales", TwoScalesTest, sys.argv)

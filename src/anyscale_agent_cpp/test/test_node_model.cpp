@@ -1,0 +1,167 @@
+// gtest: model allow-list parsing, name checks, $(find) and rosrun-style executable lookup.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "anyscale_agent_cpp/node_model.h"
+
+using namespace anyscale_agent;
+namespace fs = std::filesystem;
+
+namespace
+{
+const char* kModel = R"(
+scales: [{name: robot, master: true}]
+nodes:
+  - name: amcl
+    launch:
+      package: nav_pkg
+      type: amcl_node
+      args: [--flag, $(find nav_pkg)/cfg.yaml]
+      remaps: {scan: /base_scan}
+      params: {map_file: $(find nav_pkg)/maps/m.yaml, particles: 500, nested: {a: [1, 2]}}
+    cpu_usage: {robot: 50}
+  - name: robot/camera
+    launch: {package: drivers, type: camera.py}
+)";
+
+std::string locate(const std::string& pkg)
+{
+  return pkg == "nav_pkg" ? "/opt/nav_pkg" : "";
+}
+
+void touchExecutable(const fs::path& p)
+{
+  fs::create_directories(p.parent_path());
+  std::ofstream(p) << "#!/bin/sh\n";
+  ::chmod(p.c_str(), 0755);
+}
+}  // namespace
+
+TEST(NodeModel, ParsesDeclaredNodes)
+{
+  const auto m = NodeModel::parse(YAML::Load(kModel), "test.yaml");
+  EXPECT_EQ(m.names(), (std::vector<std::string>{"amcl", "robot/camera"}));
+  const NodeDecl* d = m.find("/amcl");
+  ASSERT_NE(d, nullptr);
+  EXPECT_EQ(d, m.find("amcl"));
+  EXPECT_EQ(d->package, "nav_pkg");
+  EXPECT_EQ(d->params["particles"].as<int>(), 500);
+  EXPECT_EQ(m.find("teleop"), nullptr);
+}
+
+TEST(NodeModel, ArgvHasArgsRemapsAndName)
+{
+  const auto m = NodeModel::parse(YAML::Load(kModel), "test.yaml");
+  const auto argv = buildArgv(*m.find("amcl"), "/x/amcl_node", locate);
+  EXPECT_EQ(argv, (std::vector<std::string>{"/x/amcl_node", "--flag", "/opt/nav_pkg/cfg.yaml", "scan:=/base_scan",
+                                            "__name:=amcl"}));
+  const auto cam = buildArgv(*m.find("robot/camera"), "/y/camera.py", locate);
+  EXPECT_EQ(cam, (std::vector<std::string>{"/y/camera.py", "__ns:=/robot", "__name:=camera"}));
+}
+
+TEST(NodeModel, ErrorsNameTheNodeAndKey)
+{
+  auto error_of = [](const std::string& yaml) {
+    try
+    {
+      NodeModel::parse(YAML::Load(yaml), "m.yaml");
+    }
+    catch (const ModelError& e)
+    {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(error_of("scales: []").find("'nodes' list"), std::string::npos);
+  EXPECT_NE(error_of("nodes: [{launch: {package: p, type: t}}]").find("missing key 'name'"), std::string::npos);
+  EXPECT_NE(error_of("nodes: [{name: a}]").find("node 'a': missing map 'launch'"), std::string::npos);
+  EXPECT_NE(error_of("nodes: [{name: a, launch: {package: p, type: ../../bin/sh}}]").find("launch.type"),
+            std::string::npos);
+  EXPECT_NE(error_of("nodes: [{name: a, launch: {package: p, type: /bin/sh}}]").find("launch.type"),
+            std::string::npos);
+  EXPECT_NE(error_of("nodes: [{name: '/a', launch: {package: p, type: t}}]").find("not a valid ROS node name"),
+            std::string::npos);
+  EXPECT_NE(error_of("nodes: [{name: 'a b', launch: {package: p, type: t}}]").find("not a valid"), std::string::npos);
+  EXPECT_NE(error_of("nodes: [{name: a, launch: {package: 'p;rm', type: t}}]").find("launch.package"),
+            std::string::npos);
+  EXPECT_NE(error_of("nodes: [{name: a, launch: {package: p, type: t}}, {name: a, launch: {package: p, type: t}}]")
+                .find("declared twice"),
+            std::string::npos);
+  EXPECT_NE(error_of("nodes: [{name: a, launch: {package: p, type: t, args: x}}]").find("launch.args"),
+            std::string::npos);
+  try
+  {
+    NodeModel::load("/nonexistent/model.yaml");
+    FAIL();
+  }
+  catch (const ModelError& e)
+  {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/model.yaml"), std::string::npos);
+  }
+}
+
+TEST(NodeModel, NameChecks)
+{
+  EXPECT_TRUE(isValidNodeName("amcl"));
+  EXPECT_TRUE(isValidNodeName("ns/amcl_2"));
+  EXPECT_FALSE(isValidNodeName("ns//amcl"));
+  EXPECT_FALSE(isValidNodeName("2amcl"));
+  EXPECT_FALSE(isValidNodeName("amcl;ls"));
+  EXPECT_TRUE(isValidExecutableName("talker.py"));
+  EXPECT_FALSE(isValidExecutableName(".."));
+  EXPECT_FALSE(isValidExecutableName("a/b"));
+  EXPECT_FALSE(isValidExecutableName("-rf"));
+  EXPECT_FALSE(isValidExecutableName("x..y"));
+}
+
+TEST(SubstituteFind, FindOnlyAndUnknownPackagesFail)
+{
+  EXPECT_EQ(substituteFind("$(find nav_pkg)/a $(find nav_pkg)", locate), "/opt/nav_pkg/a /opt/nav_pkg");
+  EXPECT_EQ(substituteFind("plain", locate), "plain");
+  EXPECT_THROW(substituteFind("$(find ghost)/x", locate), ModelError);
+  EXPECT_THROW(substituteFind("$(env HOME)", locate), ModelError);
+  EXPECT_THROW(substituteFind("$(find nav_pkg", locate), ModelError);
+}
+
+TEST(ResolveExecutable, LibexecFirstThenPackageTree)
+{
+  const fs::path root = fs::temp_directory_path() / ("anyscale_resolve_" + std::to_string(getpid()));
+  fs::remove_all(root);
+  touchExecutable(root / "prefix1/lib/pkg/built_node");
+  touchExecutable(root / "src/pkg/scripts/script_node.py");
+  touchExecutable(root / "src/pkg/scripts/twice");
+  touchExecutable(root / "src/pkg/other/twice");
+  std::ofstream(root / "src/pkg/scripts/not_executable") << "x";
+  touchExecutable(root / "src/pkg/.git/hooks/hidden");
+  const PackageLocator loc = [&](const std::string& p) { return p == "pkg" ? (root / "src/pkg").string() : ""; };
+  const std::vector<std::string> prefixes{(root / "prefix0").string(), (root / "prefix1").string()};
+
+  EXPECT_EQ(resolveExecutable("pkg", "built_node", prefixes, loc), (root / "prefix1/lib/pkg/built_node").string());
+  EXPECT_EQ(resolveExecutable("pkg", "script_node.py", prefixes, loc),
+            (root / "src/pkg/scripts/script_node.py").string());
+  EXPECT_THROW(resolveExecutable("pkg", "not_executable", prefixes, loc), ModelError);
+  EXPECT_THROW(resolveExecutable("pkg", "hidden", prefixes, loc), ModelError);
+  EXPECT_THROW(resolveExecutable("pkg", "twice", prefixes, loc), ModelError);
+  EXPECT_THROW(resolveExecutable("ghost", "x", prefixes, loc), ModelError);
+  EXPECT_THROW(resolveExecutable("pkg", "../../bin/sh", prefixes, loc), ModelError);
+  try
+  {
+    resolveExecutable("pkg", "missing", prefixes, loc);
+  }
+  catch (const ModelError& e)
+  {
+    EXPECT_NE(std::string(e.what()).find("no executable 'missing' in package 'pkg'"), std::string::npos) << e.what();
+  }
+  fs::remove_all(root);
+}
+
+TEST(CatkinPrefixes, AppendsUsrLikeDebianCatkin)
+{
+  EXPECT_EQ(catkinPrefixes("/ws/devel:/opt/x"), (std::vector<std::string>{"/ws/devel", "/opt/x", "/usr"}));
+  EXPECT_EQ(catkinPrefixes(nullptr), (std::vector<std::string>{"/usr"}));
+  EXPECT_EQ(catkinPrefixes("/usr:/a"), (std::vector<std::string>{"/usr", "/a"}));
+}

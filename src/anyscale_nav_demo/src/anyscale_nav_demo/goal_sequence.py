@@ -1,0 +1,59 @@
+"""Navigation's mission: visit the marker goals in order, recognising each marker, then return."""
+import math
+
+from .geometry import wrap_angle
+
+DRIVE, FACE_MARKER, WAIT_MARKER, DONE = "drive", "face_marker", "wait_marker", "done"
+
+
+class GoalSequence:
+    """Goals [(x, y, yaw, marker_id or -1)]. A marker goal is done once its marker was
+    recognised (on the way, or after facing it at the goal, waiting at most marker_timeout);
+    the others when the position is within xy_tolerance."""
+
+    def __init__(self, goals, xy_tolerance=0.3, yaw_tolerance=0.2, marker_timeout=5.0):
+        self.goals = [tuple(g) for g in goals]
+        self.xy_tol, self.yaw_tol, self.marker_timeout = xy_tolerance, yaw_tolerance, marker_timeout
+        self.index = 0
+        self.state = DRIVE if self.goals else DONE
+        self.seen = set()
+        self.wait_started = None
+        self.missed = []            # marker goals left after a timeout, unrecognised
+        self.reached_times = []
+
+    @property
+    def current(self):
+        return self.goals[self.index] if self.state != DONE else None
+
+    def marker_seen(self, marker_id):
+        self.seen.add(int(marker_id))
+
+    def step(self, pose, now):
+        """Advance the state for the robot pose; returns the state."""
+        if self.state == DONE:
+            return DONE
+        gx, gy, gyaw, marker = self.current
+        marker = int(marker)
+        near = math.hypot(gx - pose[0], gy - pose[1]) < self.xy_tol
+        if self.state == DRIVE and near:
+            if marker < 0 or marker in self.seen:
+                return self._next(now)
+            self.state = FACE_MARKER
+        if self.state == FACE_MARKER:
+            if marker in self.seen:
+                return self._next(now)
+            if abs(float(wrap_angle(gyaw - pose[2]))) < self.yaw_tol:
+                self.state, self.wait_started = WAIT_MARKER, now
+        if self.state == WAIT_MARKER:
+            if marker in self.seen:
+                return self._next(now)
+            if now - self.wait_started > self.marker_timeout:
+                self.missed.append(marker)
+                return self._next(now)
+        return self.state
+
+    def _next(self, now):
+        self.reached_times.append(now)
+        self.index += 1
+        self.state = DRIVE if self.index < len(self.goals) else DONE
+        return self.state

@@ -1,0 +1,192 @@
+"""AMCL core: odometry motion model, likelihood-field sensor model, KLD resampling, recovery."""
+import math
+
+import numpy as np
+from scipy import ndimage
+
+from .geometry import wrap_angle
+
+
+class LikelihoodField:
+    """Distance (m) from every cell to the nearest occupied cell, capped (amcl's likelihood field)."""
+
+    def __init__(self, occ_map, max_dist=2.0):
+        self.map = occ_map
+        self.max_dist = max_dist
+        dist = ndimage.distance_transform_edt(~occ_map.occupied) * occ_map.resolution
+        self.dist = np.minimum(dist, max_dist)
+        free = np.argwhere(occ_map.free)
+        self.free_xy = np.column_stack(occ_map.cell_center(free[:, 1], free[:, 0]))
+
+    def distance_at(self, x, y):
+        """Obstacle distance at world points; points off the map count as max_dist away."""
+        col, row = self.map.world_to_cell(x, y)
+        ok = self.map.inside(col, row)
+        out = np.full(np.shape(x), self.max_dist)
+        out[ok] = self.dist[row[ok], col[ok]]
+        return out
+
+
+def sample_motion_diff(particles, d_odom, alphas, rng):
+    """Move particles by the odometry increment between two odom-frame poses, decomposed as
+    rot1-trans-rot2, with amcl's 'diff' noise model (Probabilistic Robotics, Table 5.6)."""
+    (x0, y0, t0), (x1, y1, t1) = d_odom
+    a1, a2, a3, a4 = alphas
+    trans = math.hypot(x1 - x0, y1 - y0)
+    rot1 = float(wrap_angle(math.atan2(y1 - y0, x1 - x0) - t0)) if trans > 0.01 else 0.0
+    rot2 = float(wrap_angle(t1 - t0 - rot1))
+    # Turning backwards by pi is the same move as driving backwards: use the smaller angle.
+    rot1_n = min(abs(rot1), abs(float(wrap_angle(rot1 - math.pi))))
+    rot2_n = min(abs(rot2), abs(float(wrap_angle(rot2 - math.pi))))
+    n = len(particles)
+    r1 = rot1 - rng.normal(0, math.sqrt(a1 * rot1_n ** 2 + a2 * trans ** 2), n)
+    tr = trans - rng.normal(0, math.sqrt(a3 * trans ** 2 + a4 * (rot1_n ** 2 + rot2_n ** 2)), n)
+    r2 = rot2 - rng.normal(0, math.sqrt(a1 * rot2_n ** 2 + a2 * trans ** 2), n)
+    th = particles[:, 2] + r1
+    particles[:, 0] += tr * np.cos(th)
+    particles[:, 1] += tr * np.sin(th)
+    particles[:, 2] = wrap_angle(th + r2)
+    return particles
+
+
+def beam_likelihoods(field, particles, ranges, angles, laser_offset, sigma_hit, z_hit, z_rand,
+                     range_max):
+    """amcl's likelihood-field weight per particle: 1 + sum over beams of p(z)^3."""
+    ok = np.isfinite(ranges) & (ranges < range_max)
+    r, a = ranges[ok], angles[ok]
+    lx, ly, lt = laser_offset
+    c, s = np.cos(particles[:, 2]), np.sin(particles[:, 2])
+    px = particles[:, 0] + c * lx - s * ly
+    py = particles[:, 1] + s * lx + c * ly
+    th = particles[:, 2:3] + lt + a[None, :]
+    ex = px[:, None] + r[None, :] * np.cos(th)
+    ey = py[:, None] + r[None, :] * np.sin(th)
+    d = field.distance_at(ex, ey)
+    pz = z_hit * np.exp(-d * d / (2 * sigma_hit ** 2)) + z_rand / range_max
+    return 1.0 + np.sum(pz ** 3, axis=1)
+
+
+def kld_sample_count(k, err, z, n_min, n_max):
+    """Particles needed so the KL divergence to the true posterior stays below err (Fox 2003).
+
+    One occupied bin needs n_min (amcl returns its maximum there, which only costs CPU: the
+    bins cannot tell a tighter cloud apart anyway).
+    """
+    k = np.asarray(k, dtype=float)
+    out = np.full(k.shape, float(n_min))
+    many = k > 1
+    km = k[many] - 1
+    b = 2.0 / (9.0 * km)
+    out[many] = np.ceil(km / (2 * err) * (1 - b + np.sqrt(b) * z) ** 3)
+    return np.clip(out, n_min, n_max)
+
+
+def systematic_resample(weights, n, rng):
+    """Indices of n draws by low-variance (systematic) resampling."""
+    cdf = np.cumsum(weights)
+    cdf[-1] = 1.0
+    u = (rng.random() + np.arange(n)) / n
+    return np.searchsorted(cdf, u)
+
+
+class ParticleFilter:
+    """The adaptive Monte Carlo localisation filter, with amcl's parameter names and defaults."""
+
+    def __init__(self, field, rng=None, min_particles=500, max_particles=5000, kld_err=0.01,
+                 kld_z=0.99, alphas=(0.05, 0.05, 0.05, 0.05), sigma_hit=0.2, z_hit=0.95,
+                 z_rand=0.05, range_max=5.6, recovery_alpha_slow=0.0, recovery_alpha_fast=0.0,
+                 bin_size=(0.5, 0.5, math.radians(10))):
+        self.field = field
+        self.rng = rng or np.random.default_rng()
+        self.min_particles, self.max_particles = min_particles, max_particles
+        self.kld_err, self.kld_z = kld_err, kld_z
+        self.alphas = alphas
+        self.sigma_hit, self.z_hit, self.z_rand, self.range_max = sigma_hit, z_hit, z_rand, range_max
+        self.alpha_slow, self.alpha_fast = recovery_alpha_slow, recovery_alpha_fast
+        self.w_slow = self.w_fast = 0.0
+        self.bin_size = np.asarray(bin_size)
+        self.particles = np.zeros((0, 3))
+        self.weights = np.zeros(0)
+
+    def init_gaussian(self, mean, cov_xx, cov_yy, cov_aa):
+        """Scatter max(min_particles, ...) particles around a pose (amcl's initial pose)."""
+        n = self.min_particles if self.min_particles > 0 else 100
+        std = np.sqrt(np.maximum([cov_xx, cov_yy, cov_aa], 0.0))
+        self.particles = np.asarray(mean, dtype=float) + self.rng.standard_normal((n, 3)) * std
+        self.particles[:, 2] = wrap_angle(self.particles[:, 2])
+        self.weights = np.full(n, 1.0 / n)
+        self.w_slow = self.w_fast = 0.0
+
+    def predict(self, odom_prev, odom_now):
+        sample_motion_diff(self.particles, (odom_prev, odom_now), self.alphas, self.rng)
+
+    def update(self, ranges, angles, laser_offset):
+        """Weigh particles by a scan; also tracks the long/short-term likelihood averages."""
+        p = beam_likelihoods(self.field, self.particles, ranges, angles, laser_offset,
+                             self.sigma_hit, self.z_hit, self.z_rand, self.range_max)
+        w = self.weights * p
+        total = w.sum()
+        if not np.isfinite(total) or total <= 0:
+            self.weights = np.full(len(p), 1.0 / len(p))
+            return
+        self.weights = w / total
+        w_avg = float(np.mean(p))
+        if self.alpha_slow > 0:
+            self.w_slow = w_avg if self.w_slow == 0 else self.w_slow + self.alpha_slow * (w_avg - self.w_slow)
+            self.w_fast = w_avg if self.w_fast == 0 else self.w_fast + self.alpha_fast * (w_avg - self.w_fast)
+
+    def resample(self):
+        """KLD-adaptive resampling with random injection when the fit drops (recovery)."""
+        inject = 0.0
+        if self.w_slow > 0:
+            inject = max(0.0, 1.0 - self.w_fast / self.w_slow)
+        cand = self.particles[systematic_resample(self.weights, self.max_particles, self.rng)]
+        n_rand = self.rng.random(self.max_particles) < inject
+        if n_rand.any() and len(self.field.free_xy):
+            pick = self.field.free_xy[self.rng.integers(len(self.field.free_xy), size=n_rand.sum())]
+            cand[n_rand, :2] = pick
+            cand[n_rand, 2] = self.rng.uniform(-math.pi, math.pi, n_rand.sum())
+        cand = cand[self.rng.permutation(len(cand))]
+        n = self._kld_count(cand)
+        self.particles = cand[:n].copy()
+        self.weights = np.full(n, 1.0 / n)
+        if inject > 0:   # amcl resets the averages after injecting, so it does not keep injecting
+            self.w_slow = self.w_fast = 0.0
+
+    def _kld_count(self, cand):
+        keys = np.floor(cand / self.bin_size).astype(np.int64)
+        _, first = np.unique(keys, axis=0, return_index=True)
+        is_new = np.zeros(len(cand), dtype=bool)
+        is_new[first] = True
+        k = np.cumsum(is_new)
+        need = kld_sample_count(k, self.kld_err, self.kld_z, self.min_particles, self.max_particles)
+        enough = np.nonzero(np.arange(1, len(cand) + 1) >= need)[0]
+        return int(enough[0] + 1) if len(enough) else len(cand)
+
+    def estimate(self):
+        """Mean pose and 3x3 covariance of the heaviest particle cluster (as amcl reports it),
+        so that particles injected for recovery do not drag the estimate across the map."""
+        members = heaviest_cluster(self.particles[:, :2], self.weights, self.bin_size[0])
+        p, w = self.particles[members], self.weights[members]
+        w = w / w.sum() if w.sum() > 0 else np.full(len(w), 1.0 / len(w))
+        x, y = np.dot(w, p[:, 0]), np.dot(w, p[:, 1])
+        th = math.atan2(np.dot(w, np.sin(p[:, 2])), np.dot(w, np.cos(p[:, 2])))
+        d = p - np.array([x, y, th])
+        d[:, 2] = wrap_angle(d[:, 2])
+        cov = (d * w[:, None]).T @ d
+        return (float(x), float(y), float(th)), cov
+
+
+def heaviest_cluster(xy, weights, cell):
+    """Mask of the particles in the 8-connected group of occupied cells with most weight."""
+    ij = np.floor(xy / cell).astype(np.int64)
+    ij -= ij.min(axis=0)
+    shape = tuple(ij.max(axis=0) + 1)
+    occupied = np.zeros(shape, dtype=bool)
+    occupied[ij[:, 0], ij[:, 1]] = True
+    labels, n = ndimage.label(occupied, structure=np.ones((3, 3)))
+    if n <= 1:
+        return np.ones(len(xy), dtype=bool)
+    lab = labels[ij[:, 0], ij[:, 1]]
+    best = np.argmax(np.bincount(lab, weights=weights, minlength=n + 1))
+    return lab == best

@@ -1,0 +1,62 @@
+"""The package's declarative files agree with its nodes: testbed.yaml, launch files, rviz config."""
+import os
+import re
+
+import yaml
+
+PKG = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+
+# Topics each executable publishes (resolved in the root namespace, as robot.launch runs them).
+PUBLISHES = {
+    "laser_driver": {"/scan"}, "odometer_driver": {"/joint_states"},
+    "camera_driver": {"/camera/image_raw", "/camera/camera_info"}, "odometry": {"/odom"},
+    "amcl": {"/amcl_pose", "/particlecloud"}, "ekf": {"/odometry/filtered"},
+    "ar_recognition": {"/ar_markers"}, "map_server": {"/map", "/map_metadata"},
+    "navigation": {"/cmd_vel", "/navigation/global_plan", "/navigation/local_plan",
+                   "/navigation/current_goal", "/navigation/speed_limit", "/navigation/status"},
+    "initial_pose_publisher": {"/initialpose"}, "world_sim": {"/sim/ground_truth"},
+}
+
+
+def load(rel):
+    with open(os.path.join(PKG, rel)) as f:
+        return yaml.safe_load(f)
+
+
+def test_testbed_model_matches_the_nodes():
+    model = load("config/testbed.yaml")
+    nodes = {n["name"]: n for n in model["nodes"]}
+    assert len(nodes) == 11
+    for n in nodes.values():
+        assert n["launch"]["package"] == "anyscale_nav_demo"
+        assert os.path.isfile(os.path.join(PKG, "nodes", n["launch"]["type"])), n["launch"]["type"]
+    for c in model["connections"]:
+        assert c["topic"] in PUBLISHES[nodes[c["publisher"]]["launch"]["type"]], c
+    assert nodes["amcl"]["cpu_usage"]["robot"] == 50 and nodes["ar_recognition"]["cpu_usage"]["robot"] == 33
+    rates = {(c["publisher"], c["subscriber"]): (c["freq_min"], c["freq_opt"]) for c in model["connections"]}
+    assert rates[("amcl", "ekf")] == (2, 5) and rates[("odometer", "odometry")] == (10, 40)
+
+
+def test_robot_launch_names_every_model_node():
+    model = load("config/testbed.yaml")
+    text = ""
+    for f in ("launch/robot.launch", "launch/drivers.launch"):
+        with open(os.path.join(PKG, f)) as fh:
+            text += fh.read()
+    launched = dict(re.findall(r'type="([a-z_]+)" name="([a-z_]+)"', text))
+    for n in model["nodes"]:
+        assert launched.get(n["launch"]["type"]) == n["name"], n["name"]
+
+
+def test_rviz_config_shows_published_topics():
+    cfg = load("rviz/nav_demo.rviz")
+    displays = cfg["Visualization Manager"]["Displays"]
+    published = set().union(*PUBLISHES.values())
+    topics = [d.get("Topic") or d.get("Marker Topic") or d.get("Image Topic") for d in displays]
+    for t in filter(None, topics):
+        assert t in published, t
+    names = {d["Name"] for d in displays}
+    for wanted in ("Map", "Laser scan", "AMCL particles", "Global plan", "Local plan",
+                   "Ground truth", "EKF estimate", "AR markers"):
+        assert wanted in names
+    assert cfg["Visualization Manager"]["Global Options"]["Fixed Frame"] == "map"

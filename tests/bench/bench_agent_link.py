@@ -11,16 +11,20 @@ import argparse
 import ast
 import os
 import shutil
+import signal
 import statistics
 import subprocess
 import sys
 import time
 
+from anyscale_core.two_scale_testbed import (ScaleEnd, TwoScaleLayout, TwoScaleTestbed, missing_capabilities,
+                                             namespace_exec)
+
 PID = os.getpid()
-NS_M, NS_R = "asbl%d_m" % PID, "asbl%d_r" % PID
-VETH_M, VETH_R = "abm%d" % PID, "abr%d" % PID
-IP_M, IP_R = "10.213.78.1", "10.213.78.2"
-URI = "http://%s:11311" % IP_M
+LAYOUT = TwoScaleLayout(
+    robot=ScaleEnd("robot", "asbl%d_m" % PID, "abm%d" % PID, "10.213.78.1", 0.0),
+    laptop=ScaleEnd("laptop", "asbl%d_r" % PID, "abr%d" % PID, "10.213.78.2", 0.0))
+URI = "http://%s:11311" % LAYOUT.robot.address
 MODEL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "src", "anyscale_agent_cpp", "test",
                      "config", "test_model.yaml")
 
@@ -40,33 +44,38 @@ print(repr((bw, rtt, up)))
 """
 
 
-def sh(*args):
-    subprocess.run(args, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-
-
-def in_ns(ns, ip, argv, **kw):
-    env = dict(os.environ, ROS_MASTER_URI=URI, ROS_IP=ip, ROS_HOME="/tmp/%s_home" % ns)
+def ros_env(end):
+    env = dict(os.environ, ROS_MASTER_URI=URI, ROS_IP=end.address, ROS_HOME="/tmp/%s_home" % end.namespace)
     env.pop("ROS_HOSTNAME", None)
-    return subprocess.Popen(["ip", "netns", "exec", ns] + argv, env=env, **kw)
+    return env
 
 
-def tbf(rate_mbit, burst="32kbit"):
-    sh("ip", "netns", "exec", NS_R, "tc", "qdisc", "replace", "dev", VETH_R, "root", "tbf", "rate",
-       "%gmbit" % rate_mbit, "burst", burst, "latency", "50ms")
+def read_status(seconds):
+    """Starts the status reader in the master's namespace; returns the process."""
+    return subprocess.Popen(namespace_exec(LAYOUT.robot, ["/usr/bin/python3", "-c", STATUS_READER, str(seconds)]),
+                            env=ros_env(LAYOUT.robot), stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                            text=True)
 
 
-def step_down(agent, procs, quiet):
+def start_remote_agent(bed, agent, *extra):
+    return bed.start("laptop", [agent, "__name:=anyscale_agent_laptop", "_scale:=laptop", "_master_scale:=robot",
+                                "_model:=" + MODEL] + list(extra), env=ros_env(LAYOUT.laptop))
+
+
+def stop(proc):
+    proc.send_signal(signal.SIGINT)
+    proc.wait(timeout=20)
+
+
+def step_down(bed, agent, burst_kbit):
     """How long the estimate takes to follow the link from 50 down to 5 Mbit/s."""
-    tbf(50)
-    remote = in_ns(NS_R, IP_R, [agent, "__name:=anyscale_agent_laptop", "_scale:=laptop", "_master_scale:=robot",
-                                "_model:=" + MODEL], **quiet)  # default bulk period, 5 s
-    procs.append(remote)
+    bed.shape(50, burst_kbit)
+    remote = start_remote_agent(bed, agent)  # default bulk period, 5 s
     time.sleep(12.0)
-    reader = in_ns(NS_M, IP_M, ["/usr/bin/python3", "-c", STATUS_READER, "25"], stdout=subprocess.PIPE,
-                   stderr=subprocess.DEVNULL, text=True)
+    reader = read_status(25)
     time.sleep(5.0)
     t_step = time.time()
-    tbf(5)
+    bed.shape(5, burst_kbit)
     out, _ = reader.communicate(timeout=90)
     bw, _, _ = ast.literal_eval(out.strip().splitlines()[-1])
     before = [b for t, b in bw if t < t_step]
@@ -74,41 +83,34 @@ def step_down(agent, procs, quiet):
     print("step 50 -> 5 Mbit/s with the default 5 s bulk period: estimate %.1f Mbit/s before, below 10 Mbit/s"
           " %s after the step (final %.1f)" % (before[-1] if before else float("nan"),
                                                "%.1f s" % after[0] if after else "never", bw[-1][1]))
-    remote.send_signal(2)
-    remote.wait(timeout=20)
+    stop(remote)
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rates", type=float, nargs="+", default=[50.0, 20.0, 5.0], help="tbf rates [Mbit/s]")
     parser.add_argument("--seconds", type=float, default=20.0)
-    parser.add_argument("--burst", default="32kbit", help="tbf burst")
+    parser.add_argument("--burst", default="32kbit", help="tbf burst (kbit)")
     args = parser.parse_args()
-    if os.geteuid() != 0:
-        sys.exit("needs root (ip netns, tc)")
+    missing = missing_capabilities(need_cgroups=False)
+    if missing:
+        sys.exit("the link bench needs " + "; ".join(missing))
     from catkin.find_in_workspaces import find_in_workspaces
     agent = find_in_workspaces(["libexec"], project="anyscale_agent_cpp", path="anyscale_agent",
                                first_matching_workspace_only=True)
     if not agent:
         sys.exit("anyscale_agent not built / workspace not sourced")
-    procs = []
-    quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        sh("ip", "netns", "add", NS_M)
-        sh("ip", "netns", "add", NS_R)
-        sh("ip", "link", "add", VETH_M, "type", "veth", "peer", "name", VETH_R)
-        sh("ip", "link", "set", VETH_M, "netns", NS_M)
-        sh("ip", "link", "set", VETH_R, "netns", NS_R)
-        for ns, dev, ip in ((NS_M, VETH_M, IP_M), (NS_R, VETH_R, IP_R)):
-            sh("ip", "-n", ns, "addr", "add", ip + "/24", "dev", dev)
-            sh("ip", "-n", ns, "link", "set", dev, "up")
-            sh("ip", "-n", ns, "link", "set", "lo", "up")
-        procs.append(in_ns(NS_M, IP_M, ["roscore"], **quiet))
+    burst_kbit = int(args.burst.rstrip("kbit"))
+    # The shared test bed builds the namespaces and veth pair and removes them, processes
+    # included, however the run ends. tbf shapes both directions; the bulk probes go
+    # remote -> master and the answers are empty.
+    with TwoScaleTestbed(LAYOUT, cgroup_prefix="asbl%d" % PID) as bed:
+        bed.start("robot", ["roscore"], env=ros_env(LAYOUT.robot))
         check = ["/usr/bin/python3", "-c", "import rosgraph, sys; sys.exit(not rosgraph.is_master_online())"]
-        while in_ns(NS_M, IP_M, check).wait() != 0:
+        while subprocess.run(namespace_exec(LAYOUT.robot, check), env=ros_env(LAYOUT.robot)).returncode != 0:
             time.sleep(0.3)
-        procs.append(in_ns(NS_M, IP_M, [agent[0], "__name:=anyscale_agent_robot", "_scale:=robot", "_is_master:=true",
-                                        "_model:=" + MODEL], **quiet))
+        bed.start("robot", [agent[0], "__name:=anyscale_agent_robot", "_scale:=robot", "_is_master:=true",
+                            "_model:=" + MODEL], env=ros_env(LAYOUT.robot))
         print("link estimate of a fresh remote agent per rate (bulk probe 64 KiB every 2 s; %.0f s per rate)"
               % args.seconds)
         print("  %-16s %-28s %-12s %s" % ("tbf rate", "estimate median [min, max]", "RTT mean", "up"))
@@ -116,38 +118,21 @@ def main():
             if rate is None:
                 label = "none (veth)"
             else:
-                tbf(rate, args.burst)
+                bed.shape(rate, burst_kbit)
                 label = "%g Mbit/s" % rate
             # A fresh remote agent per rate: the smoothed estimate must not carry the last rate over.
-            remote = in_ns(NS_R, IP_R, [agent[0], "__name:=anyscale_agent_laptop", "_scale:=laptop",
-                                        "_master_scale:=robot", "_model:=" + MODEL, "_link_bulk_period_s:=2.0"],
-                           **quiet)
-            procs.append(remote)
+            remote = start_remote_agent(bed, agent[0], "_link_bulk_period_s:=2.0")
             time.sleep(3.0)
-            reader = in_ns(NS_M, IP_M, ["/usr/bin/python3", "-c", STATUS_READER, str(args.seconds)],
-                           stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-            out, _ = reader.communicate(timeout=args.seconds + 60)
+            out, _ = read_status(args.seconds).communicate(timeout=args.seconds + 60)
             bw, rtt, up = ast.literal_eval(out.strip().splitlines()[-1])
             bw = [b for _, b in bw]
-            
             est = "%.1f [%.1f, %.1f]" % (statistics.median(bw), min(bw), max(bw)) if bw else "n/a"
             r = "%.2f ms" % (1e3 * statistics.mean(rtt)) if rtt else "n/a"
             print("  %-16s %-28s %-12s %.0f %%" % (label, est, r, 100.0 * sum(up) / max(1, len(up))))
-            remote.send_signal(2)
-            remote.wait(timeout=20)
-        step_down(agent[0], procs, quiet)
-    finally:
-        for p in reversed(procs):
-            if p.poll() is None:
-                p.send_signal(2)
-                try:
-                    p.wait(timeout=20)
-                except subprocess.TimeoutExpired:
-                    p.kill()
-        subprocess.run(["ip", "netns", "del", NS_M], stderr=subprocess.DEVNULL)
-        subprocess.run(["ip", "netns", "del", NS_R], stderr=subprocess.DEVNULL)
-        for ns in (NS_M, NS_R):
-            shutil.rmtree("/tmp/%s_home" % ns, ignore_errors=True)
+            stop(remote)
+        step_down(bed, agent[0], burst_kbit)
+    for end in LAYOUT.ends:
+        shutil.rmtree("/tmp/%s_home" % end.namespace, ignore_errors=True)
 
 
 if __name__ == "__main__":

@@ -9,11 +9,14 @@ import time
 import psutil
 import pytest
 
-NS_MASTER = "asagt%d_m" % os.getpid()
-NS_REMOTE = "asagt%d_r" % os.getpid()
-VETH_M, VETH_R = "asm%d" % os.getpid(), "asr%d" % os.getpid()
-IP_M, IP_R = "10.213.77.1", "10.213.77.2"
-MASTER_URI = "http://%s:11311" % IP_M
+from anyscale_core.two_scale_testbed import (ScaleEnd, TwoScaleLayout, TwoScaleTestbed,
+                                             missing_capabilities, namespace_exec)
+
+PID = os.getpid()
+LAYOUT = TwoScaleLayout(
+    robot=ScaleEnd("robot", "asagt%d_m" % PID, "asm%d" % PID, "10.213.77.1", 0.0),
+    laptop=ScaleEnd("laptop", "asagt%d_r" % PID, "asr%d" % PID, "10.213.77.2", 0.0))
+MASTER_URI = "http://%s:11311" % LAYOUT.robot.address
 HERE = os.path.dirname(os.path.abspath(__file__))
 MODEL = os.path.join(HERE, "config", "test_model.yaml")
 
@@ -29,31 +32,28 @@ def _agent_binary():
 
 
 def _why_skip():
-    if os.geteuid() != 0:
-        return "needs root to create network namespaces (ip netns)"
-    if not shutil.which("ip"):
-        return "needs iproute2 (ip)"
+    missing = missing_capabilities(need_cgroups=False)
+    if missing:
+        return "needs " + "; ".join(missing)
     if not _agent_binary():
         return "anyscale_agent is not built or the workspace is not sourced"
     return None
 
 
-def sh(*args):
-    subprocess.run(args, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-
-
-def in_ns(ns, ip, argv, **kw):
-    env = dict(os.environ, ROS_MASTER_URI=MASTER_URI, ROS_IP=ip, ROS_HOME="/tmp/%s_home" % ns)
+def ros_env(end):
+    env = dict(os.environ, ROS_MASTER_URI=MASTER_URI, ROS_IP=end.address,
+               ROS_HOME="/tmp/%s_home" % end.namespace)
     env.pop("ROS_HOSTNAME", None)
-    return subprocess.Popen(["ip", "netns", "exec", ns] + argv, env=env, **kw)
+    return env
 
 
 def call(service, srv_type, request, timeout=20):
     """rosservice call from the master's namespace; returns its YAML output."""
-    out = in_ns(NS_MASTER, IP_M, ["rosservice", "call", "--wait", service, request],
-                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    text, _ = out.communicate(timeout=timeout)
-    return text
+    out = subprocess.run(namespace_exec(LAYOUT.robot, ["rosservice", "call", "--wait", service,
+                                                       request]),
+                         env=ros_env(LAYOUT.robot), capture_output=True, text=True,
+                         timeout=timeout)
+    return out.stdout + out.stderr
 
 
 @pytest.fixture
@@ -61,41 +61,23 @@ def two_namespaces():
     why = _why_skip()
     if why:
         pytest.skip(why)
-    procs = []
-    try:
-        sh("ip", "netns", "add", NS_MASTER)
-        sh("ip", "netns", "add", NS_REMOTE)
-        sh("ip", "link", "add", VETH_M, "type", "veth", "peer", "name", VETH_R)
-        sh("ip", "link", "set", VETH_M, "netns", NS_MASTER)
-        sh("ip", "link", "set", VETH_R, "netns", NS_REMOTE)
-        for ns, dev, ip in ((NS_MASTER, VETH_M, IP_M), (NS_REMOTE, VETH_R, IP_R)):
-            sh("ip", "-n", ns, "addr", "add", ip + "/24", "dev", dev)
-            sh("ip", "-n", ns, "link", "set", dev, "up")
-            sh("ip", "-n", ns, "link", "set", "lo", "up")
-        devnull = subprocess.DEVNULL
-        procs.append(in_ns(NS_MASTER, IP_M, ["roscore"], stdout=devnull, stderr=devnull))
-        check = ["/usr/bin/python3", "-c", "import rosgraph, sys; sys.exit(not rosgraph.is_master_online())"]
+    # The shared test bed builds the namespaces and veth and tears everything down, processes
+    # included, whatever happens in the test.
+    with TwoScaleTestbed(LAYOUT, cgroup_prefix="asagt%d" % PID) as bed:
+        bed.start("robot", ["roscore"], env=ros_env(LAYOUT.robot))
+        check = ["/usr/bin/python3", "-c",
+                 "import rosgraph, sys; sys.exit(not rosgraph.is_master_online())"]
         deadline = time.monotonic() + 30.0
-        while in_ns(NS_MASTER, IP_M, check).wait() != 0:
+        while subprocess.run(namespace_exec(LAYOUT.robot, check),
+                             env=ros_env(LAYOUT.robot)).returncode != 0:
             assert time.monotonic() < deadline, "roscore did not come up in the master namespace"
             time.sleep(0.3)
-        procs.append(in_ns(NS_REMOTE, IP_R, [_agent_binary(), "__name:=anyscale_agent_laptop", "_scale:=laptop",
-                                             "_master_scale:=robot", "_model:=" + MODEL,
-                                             "_sigint_timeout_s:=2.0"], stdout=devnull, stderr=devnull))
-        yield procs
-    finally:
-        for p in reversed(procs):
-            if p.poll() is None:
-                p.send_signal(2)
-                try:
-                    p.wait(timeout=20)
-                except subprocess.TimeoutExpired:
-                    p.kill()
-                    p.wait()
-        subprocess.run(["ip", "netns", "del", NS_MASTER], stderr=subprocess.DEVNULL)
-        subprocess.run(["ip", "netns", "del", NS_REMOTE], stderr=subprocess.DEVNULL)
-        for ns in (NS_MASTER, NS_REMOTE):
-            shutil.rmtree("/tmp/%s_home" % ns, ignore_errors=True)
+        agent = bed.start("laptop", [_agent_binary(), "__name:=anyscale_agent_laptop",
+                                     "_scale:=laptop", "_master_scale:=robot", "_model:=" + MODEL,
+                                     "_sigint_timeout_s:=2.0"], env=ros_env(LAYOUT.laptop))
+        yield bed, agent
+    for end in LAYOUT.ends:
+        shutil.rmtree("/tmp/%s_home" % end.namespace, ignore_errors=True)
 
 
 def alive(pid):
@@ -106,14 +88,14 @@ def alive(pid):
 
 
 def test_lease_stops_node_during_partition(two_namespaces):
-    agent = two_namespaces[1]
+    bed, agent = two_namespaces
     reply = call("/anyscale/laptop/start_node", "anyscale_msgs/StartNode",
                  "{node: talker_cpp, param_overrides: [], lease_s: 4.0}", timeout=60)
     assert "success: True" in reply, reply
     pid = int(reply.split("pid:")[1].split()[0])
     assert alive(pid)
     # Partition: the remote scale can no longer reach the master (nor be reached).
-    sh("ip", "-n", NS_REMOTE, "link", "set", VETH_R, "down")
+    bed.set_link(False)
     t0 = time.monotonic()
     while alive(pid) and time.monotonic() - t0 < 15.0:
         time.sleep(0.05)
@@ -121,6 +103,6 @@ def test_lease_stops_node_during_partition(two_namespaces):
     assert not alive(pid), "node still running %.1f s into the partition" % took
     assert took < 4.0 + 2.0 + 2.0, took  # lease, then at most SIGINT timeout + margin
     assert agent.poll() is None, "the agent itself must survive the partition"
-    sh("ip", "-n", NS_REMOTE, "link", "set", VETH_R, "up")
+    bed.set_link(True)
     listed = call("/anyscale/laptop/list_nodes", "anyscale_msgs/ListNodes", "{}", timeout=60)
     assert "state: 5" in listed, listed  # LEASE_EXPIRED

@@ -55,11 +55,12 @@ def setup_commands(layout: TwoScaleLayout) -> List[List[str]]:
     return cmds
 
 
-def shape_commands(layout: TwoScaleLayout, mbps: float) -> List[List[str]]:
+def shape_commands(layout: TwoScaleLayout, mbps: float,
+                   burst_kbit: int = 32) -> List[List[str]]:
     """A token bucket of `mbps` on both ends (both directions); tbf needs a positive rate."""
     kbit = max(1, int(round(mbps * 1000)))
     return [["ip", "netns", "exec", end.namespace, "tc", "qdisc", "replace", "dev",
-             end.interface, "root", "tbf", "rate", f"{kbit}kbit", "burst", "32kbit",
+             end.interface, "root", "tbf", "rate", f"{kbit}kbit", "burst", f"{burst_kbit}kbit",
              "latency", "50ms"] for end in layout.ends]
 
 
@@ -127,14 +128,14 @@ def cgroup_available(root: str = CGROUP_CPU_ROOT) -> bool:
     return os.path.isfile(os.path.join(root, "cpu.cfs_quota_us")) and os.access(root, os.W_OK)
 
 
-def missing_capabilities() -> List[str]:
+def missing_capabilities(need_cgroups: bool = True) -> List[str]:
     """What the test bed needs and this machine lacks, in words (empty = all there)."""
     missing = []
     if os.geteuid() != 0:
         missing.append("root (network namespaces, tc and cgroups need it)")
     if run(["ip", "netns", "list"], check=False).returncode != 0:
         missing.append("`ip netns` (iproute2 with network-namespace support)")
-    if not cgroup_available():
+    if need_cgroups and not cgroup_available():
         missing.append(f"a writable cgroup v1 CPU hierarchy at {CGROUP_CPU_ROOT}")
     return missing
 
@@ -169,8 +170,8 @@ class TwoScaleTestbed:
     def end(self, scale: str) -> ScaleEnd:
         return next(e for e in self.layout.ends if e.scale == scale)
 
-    def shape(self, mbps: float):
-        for argv in shape_commands(self.layout, mbps):
+    def shape(self, mbps: float, burst_kbit: int = 32):
+        for argv in shape_commands(self.layout, mbps, burst_kbit):
             run(argv)
 
     def set_link(self, up: bool):

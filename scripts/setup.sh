@@ -26,7 +26,9 @@ ANYSCALE_APT_PACKAGES=(
   # ROS libraries the nodes use
   topic-tools libtopic-tools-dev python3-topic-tools libyaml-cpp-dev
   python3-tf2-ros libtf2-ros-dev python3-message-filters
-  python3-diagnostic-updater libdiagnostic-updater-dev python3-cv-bridge rviz
+  python3-diagnostic-updater libdiagnostic-updater-dev python3-cv-bridge
+  # rviz, and a virtual screen to check the rviz config in the tests
+  rviz xvfb libgl1-mesa-dri
   # Python libraries for /usr/bin/python3
   python3-numpy python3-scipy python3-psutil python3-yaml python3-opencv
   python3-matplotlib python3-pytest python3-hypothesis python3-tqdm

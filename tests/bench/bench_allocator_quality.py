@@ -32,7 +32,7 @@ def random_instance(rng):
     n = int(rng.integers(3, 19))
     m = int(rng.integers(1, n))
     k = int(rng.integers(2, 6))
-    ch = characterise(sim.generate_system(n, m, k, rng))
+    ch = characterise(sim.generate_model(n, m, k, rng))
     return (n, m, k), ch, random_state(ch, rng)
 
 
@@ -106,7 +106,7 @@ def main(argv=None) -> int:
             tallies = per_config.setdefault(cfg, {a: Tally() for a in names})
             for j in range(args.per_config):
                 rng = np.random.default_rng([args.seed, *cfg, j])
-                ch = characterise(sim.generate_system(*cfg, rng))
+                ch = characterise(sim.generate_model(*cfg, rng))
                 # Half at full usable bandwidth with idle scales (the Fig. 7 ideal), half random.
                 state = DynamicState(sim.FULL_USABLE_MBPS) if j % 2 == 0 else random_state(ch, rng)
                 for name, result in gaps(ch, state, heuristics, optimal).items():

@@ -26,7 +26,7 @@ def cases(size, count, seed):
     out = []
     for j in range(count):
         rng = np.random.default_rng([seed, *size, j])
-        ch = characterise(sim.generate_system(*size, rng))
+        ch = characterise(sim.generate_model(*size, rng))
         remote = [s for i, s in enumerate(ch.scale_names) if i != ch.master]
         if j % 2 == 0:
             state = DynamicState(sim.FULL_USABLE_MBPS)

@@ -15,13 +15,13 @@ SMALL = [(6, 2, 2), (6, 2, 3), (12, 6, 2), (12, 6, 3)]   # exact optimum by enum
 STEP_NOISE = sim.DECISION_PERIOD_S / (sim.PATH_LENGTH_M / sim.V_MIN)
 
 
-def system(n, m, k, seed=0):
-    return sim.generate_system(n, m, k, np.random.default_rng(seed))
+def generated_model(n, m, k, seed=0):
+    return sim.generate_model(n, m, k, np.random.default_rng(seed))
 
 
 @pytest.mark.parametrize("n,m,k", SMALL + [(18, 9, 5), (200, 100, 20)])
 def test_generated_models_validate_with_m_migratable_nodes(n, m, k):
-    model = system(n, m, k)
+    model = generated_model(n, m, k)
     ch = characterise(model)
     assert ch.migratable.sum() == m
     # N excludes the input-data nodes (the paper's convention); they are pinned to the robot.
@@ -36,7 +36,7 @@ def test_generated_models_validate_with_m_migratable_nodes(n, m, k):
 
 
 def test_remote_scales_grow_more_powerful_and_alpha_is_capacity():
-    model = system(6, 2, 20)
+    model = generated_model(6, 2, 20)
     capacity = [s.cores * s.cpu_ghz for s in model.scales]
     assert all(b > a for a, b in zip(capacity, capacity[1:]))
     assert all(b.cpu_ghz > a.cpu_ghz for a, b in zip(model.scales[1:], model.scales[2:]))
@@ -46,7 +46,7 @@ def test_remote_scales_grow_more_powerful_and_alpha_is_capacity():
 
 
 def test_migratable_work_grows_with_the_rate_it_reaches():
-    model = system(12, 6, 5, seed=3)
+    model = generated_model(12, 6, 5, seed=3)
     outputs = {c.publisher: c for c in reversed(model.connections)}
     for node in model.nodes:
         if len(node.cpu_usage) == 1:
@@ -61,7 +61,7 @@ def test_migratable_work_grows_with_the_rate_it_reaches():
 
 def test_all_nodes_at_minimum_rates_fit_the_robot():
     for seed in range(5):
-        total = sum(n.cpu_usage["robot"] for n in system(18, 9, 3, seed).nodes)
+        total = sum(n.cpu_usage["robot"] for n in generated_model(18, 9, 3, seed).nodes)
         assert 80 - 0.01 <= total <= 100 + 0.01
 
 
@@ -88,7 +88,7 @@ def test_bandwidth_steps_up_from_the_edge_of_a_stretch():
 
 
 def test_links_are_down_outside_coverage():
-    ch = characterise(system(6, 2, 3))
+    ch = characterise(generated_model(6, 2, 3))
     cov = sim.Coverage(115.0, ((10.0, 40.0),))
     out = sim.state_at(ch, cov, 50.0)
     assert out.bandwidth_mbps == 0 and not any(out.link_up.values())
@@ -96,7 +96,7 @@ def test_links_are_down_outside_coverage():
 
 
 def test_speed_is_v_min_on_the_robot_and_v_max_at_the_ideal_mapping():
-    ch = characterise(system(12, 6, 3))
+    ch = characterise(generated_model(12, 6, 3))
     model = sim.SpeedModel.of(ch)
     assert model.speed(model.perf_master) == sim.V_MIN
     assert model.speed(model.perf_ideal) == pytest.approx(sim.V_MAX)
@@ -104,7 +104,7 @@ def test_speed_is_v_min_on_the_robot_and_v_max_at_the_ideal_mapping():
 
 
 def test_baseline_time_is_the_loop_at_v_min():
-    ch = characterise(system(6, 2, 2))
+    ch = characterise(generated_model(6, 2, 2))
     cov = sim.generate_coverage(np.random.default_rng(0))
     run = sim.simulate_run(ch, cov, None, sim.SpeedModel.of(ch))
     assert run.time_s == pytest.approx(115.0 / 0.2, abs=1e-6)
@@ -130,7 +130,7 @@ def test_optimum_beats_heuristic_and_best_case_beats_normal(n, m, k):
 
 
 def test_link_drops_force_migrations_back_and_mappings_stay_feasible():
-    ch = characterise(system(12, 6, 3, seed=2))
+    ch = characterise(generated_model(12, 6, 3, seed=2))
     cov = sim.generate_coverage(np.random.default_rng(2))
     run = sim.simulate_run(ch, cov, "paper", sim.SpeedModel.of(ch))
     assert run.migrations_back >= len(cov.stretches) - 1 and run.migrations > 0
@@ -175,7 +175,7 @@ def test_paper_local_is_feasible_and_never_below_the_paper_heuristic():
     from anyscale_core.cost import perf
     for seed in range(12):
         rng = np.random.default_rng(seed)
-        ch = characterise(sim.generate_system(12, 6, 4, rng))
+        ch = characterise(sim.generate_model(12, 6, 4, rng))
         remote = ch.scale_names[1:]
         state = DynamicState(float(rng.choice([3.0, 6.0, 13.5, 27.0])),
                              {s: float(rng.uniform(0, 90)) for s in remote},

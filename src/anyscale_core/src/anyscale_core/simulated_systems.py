@@ -88,7 +88,7 @@ def _critical_roles(n_critical: int) -> List[str]:
     return roles + ["fusion"] * ((rest + 1) // 2) + ["preproc"] * (rest // 2)
 
 
-def generate_system(n_nodes: int, n_migratable: int, n_scales: int,
+def generate_model(n_nodes: int, n_migratable: int, n_scales: int,
                     rng: np.random.Generator) -> SystemModel:
     """A Fig. 3-like sensing -> processing -> navigation pipeline of n_nodes nodes (input-data
     nodes extra), n_migratable of them migratable, on n_scales scales; validated by parse_model."""

@@ -13,7 +13,7 @@ from .allocators import AllocationContext, make_allocator
 from .characterisation import Characterisation, characterise
 from .constraints import DynamicState, is_feasible
 from .cost import ObjectiveIntegrator, perf
-from .simulated_systems import NOMINAL_MBPS, generate_system
+from .simulated_systems import NOMINAL_MBPS, generate_model
 
 # --- Facts of the paper's test bed (sections IV and V) --------------------------------------
 PATH_LENGTH_M = 115.0              # the square path of Test 1-4
@@ -206,7 +206,7 @@ def run_config(n_nodes: int, n_migratable: int, n_scales: int, run: int, seed: i
     """One seeded run of one configuration: a system, a coverage pattern, the loop timed without
     migration and under each allocator, with that coverage and in the best case."""
     rng = np.random.default_rng([seed, n_nodes, n_migratable, n_scales, run])
-    ch = characterise(generate_system(n_nodes, n_migratable, n_scales, rng))
+    ch = characterise(generate_model(n_nodes, n_migratable, n_scales, rng))
     coverage = generate_coverage(rng)
     speed_model = SpeedModel.of(ch)
     baseline = simulate_run(ch, coverage, None, speed_model).time_s

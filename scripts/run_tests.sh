@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Builds the workspace and runs every test: gtest and rostest (catkin run_tests), the
-# system rostests in tests/, and pytest on every package and tests/. Ends with one line
+# Builds the workspace and runs every test: gtest and rostest (catkin run_tests; rostest
+# needs the package a .test file belongs to, so rostests live in packages), and pytest on
+# every package and tests/. Ends with one line
 # "N passed, N failed, N skipped" summing all runners; exits non-zero on any failure.
 set -o pipefail
 ANYSCALE_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -19,13 +20,6 @@ status=0
 echo "== gtest and rostest of the packages (make run_tests)"
 make -C build -j1 run_tests > "$logs/run_tests.log" 2>&1 \
   || { status=1; tail -n 40 "$logs/run_tests.log"; }
-
-shopt -s nullglob
-for launch in tests/*.test; do
-  echo "== rostest $launch"
-  rostest --text "$launch" > "$logs/$(basename "$launch").log" 2>&1 \
-    || { status=1; tail -n 40 "$logs/$(basename "$launch").log"; }
-done
 
 echo "== pytest"
 /usr/bin/python3 -m pytest -q -p no:cacheprovider --junitxml="$results/pytest/pytest.xml" \

@@ -1,4 +1,5 @@
-"""The `anyscale` command line: check a model, plan one decision, run the Fig. 7 simulation.
+"""The `anyscale` command line: check a model, plan one decision, run the Fig. 7 simulation,
+watch a running system (top).
 
 Errors in the user's files are printed as one line naming the file and key, exit status 2.
 """
@@ -55,6 +56,20 @@ def build_parser() -> argparse.ArgumentParser:
                                           "the best case with no migration.")
     simulation_report.add_arguments(simulate)
     simulate.set_defaults(run=simulation_report.main)
+
+    top = sub.add_parser("top", help="live view of scales, nodes, connection rates and events",
+                         description="A live terminal view of the running system: every "
+                                     "scale (CPU, memory, link), every node and where it runs, "
+                                     "each model connection's rate against freq_min/freq_opt, "
+                                     "and the last migration events. Needs a ROS master.")
+    top.add_argument("--model", metavar="MODEL",
+                     help="system model YAML (default: the one the decision node publishes "
+                          "as /anyscale/model)")
+    top.add_argument("--once", action="store_true",
+                     help="print one frame once data has arrived, then exit")
+    top.add_argument("--period", type=float, default=1.0, metavar="S",
+                     help="refresh period in seconds (default: 1)")
+    top.set_defaults(run=run_top)
     return parser
 
 
@@ -132,6 +147,12 @@ def print_plan(ch: Characterisation, state: DynamicState, start, decision, resul
     print(f"bandwidth across scales: {required_bandwidth(ch, decision.assign):g} of "
           f"{state.bandwidth_mbps:g} Mbit/s")
     print("feasible: yes" if result["feasible"] else "feasible: NO: " + "; ".join(broken))
+
+
+def run_top(args) -> int:
+    # Imported here: check, plan and simulate must work without ROS installed.
+    from . import top_view
+    return top_view.run(args.model, args.once, max(args.period, 0.1))
 
 
 def main(argv: Optional[List[str]] = None) -> int:

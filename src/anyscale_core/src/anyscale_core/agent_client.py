@@ -1,0 +1,135 @@
+"""Calls to the agents' services with timeouts, off the decision loop's thread."""
+import collections
+import threading
+import time
+import xmlrpc.client
+from typing import Callable, Optional
+
+import rosgraph
+import rospy
+from anyscale_msgs.srv import (ListNodes, RenewLeases, SetWatchedTopics, StartNode,
+                               StopNode)
+
+
+def call_with_timeout(fn: Callable, timeout_s: float):
+    """fn() or TimeoutError after timeout_s. rospy service calls have no timeout of their own
+    and block for as long as TCP retries on a partitioned link, so the call runs in a daemon
+    thread that is abandoned if it hangs."""
+    box = {}
+
+    def run():
+        try:
+            box["value"] = fn()
+        except Exception as e:  # noqa: BLE001 - handed to the caller as is
+            box["error"] = e
+
+    t = threading.Thread(target=run, daemon=True)
+    t.start()
+    t.join(timeout_s)
+    if t.is_alive():
+        raise TimeoutError(f"no answer within {timeout_s:g} s")
+    if "error" in box:
+        raise box["error"]
+    return box["value"]
+
+
+class AgentClient:
+    """The services of the agents under /anyscale/<scale>/."""
+
+    SERVICES = {"start_node": StartNode, "stop_node": StopNode, "renew_leases": RenewLeases,
+                "list_nodes": ListNodes, "set_watched_topics": SetWatchedTopics}
+
+    def __init__(self, timeout_s: float, stop_timeout_s: float):
+        self.timeout_s = timeout_s
+        self.stop_timeout_s = stop_timeout_s
+
+    def call(self, scale: str, service: str, timeout_s: Optional[float] = None, **request):
+        # A fresh proxy per call: proxies are not meant to be shared between threads.
+        proxy = rospy.ServiceProxy(f"/anyscale/{scale}/{service}", self.SERVICES[service])
+        return call_with_timeout(lambda: proxy(**request),
+                                 self.timeout_s if timeout_s is None else timeout_s)
+
+    def start(self, scale, node, overrides, lease_s):
+        return self.call(scale, "start_node", node=node, param_overrides=overrides,
+                         lease_s=lease_s)
+
+    def stop(self, scale, node):
+        return self.call(scale, "stop_node", self.stop_timeout_s, node=node, wait=True)
+
+    def renew(self, scale, nodes, lease_s):
+        return self.call(scale, "renew_leases", min(self.timeout_s, lease_s), nodes=list(nodes),
+                         lease_s=lease_s)
+
+    def set_watched(self, scale, topics):
+        return self.call(scale, "set_watched_topics", topics=list(topics))
+
+
+class _TimeoutTransport(xmlrpc.client.Transport):
+    def __init__(self, timeout_s):
+        super().__init__()
+        self._timeout_s = timeout_s
+
+    def make_connection(self, host):
+        conn = super().make_connection(host)
+        conn.timeout = self._timeout_s
+        return conn
+
+
+def registered_pid(node: str, caller_id: str, timeout_s: float = 1.0) -> Optional[int]:
+    """pid of the process the master lists under `node` (asked over the node's own XML-RPC,
+    with a timeout: it may sit behind a partitioned link); None if unknown."""
+    try:
+        uri = rosgraph.Master(caller_id).lookupNode(node)
+        code, _, pid = xmlrpc.client.ServerProxy(
+            uri, transport=_TimeoutTransport(timeout_s)).getPid(caller_id)
+    except (rosgraph.MasterError, OSError, xmlrpc.client.Error):
+        return None
+    return pid if code == 1 else None
+
+
+def wait_registered(node: str, pid: int, caller_id: str, timeout_s: float,
+                    also: Callable[[], bool] = lambda: False, period_s: float = 0.05) -> bool:
+    """True once the master lists `node` with `pid` (or `also()` says it runs), within
+    timeout_s."""
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end and not rospy.is_shutdown():
+        if registered_pid(node, caller_id) == pid or also():
+            return True
+        time.sleep(period_s)
+    return False
+
+
+class Worker:
+    """A thread that runs queued jobs in order. Keyed jobs replace a pending job of the same
+    key (only the latest lease renewal or watch list of a scale matters)."""
+
+    def __init__(self, name: str):
+        self._jobs = collections.OrderedDict()
+        self._cond = threading.Condition()
+        self._seq = 0
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        self._thread.start()
+
+    def submit(self, job: Callable[[], None], key=None):
+        with self._cond:
+            if key is None:
+                self._seq += 1
+                key = ("seq", self._seq)
+            self._jobs.pop(key, None)
+            self._jobs[key] = job
+            self._cond.notify()
+
+    def pending(self) -> int:
+        with self._cond:
+            return len(self._jobs)
+
+    def _run(self):
+        while True:
+            with self._cond:
+                while not self._jobs:
+                    self._cond.wait()
+                _, job = self._jobs.popitem(last=False)
+            try:
+                job()
+            except Exception as e:  # noqa: BLE001 - one failed job must not end the worker
+                rospy.logerr("anyscale decision: %s", e)

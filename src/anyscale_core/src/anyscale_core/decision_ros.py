@@ -1,0 +1,348 @@
+"""The decision node's rospy layer: parameters, agent status in, agent services out, the
+mapping, events and diagnostics published. The decisions themselves are DecisionEngine's."""
+import math
+import os
+import threading
+import time
+from dataclasses import dataclass
+from typing import Dict, List
+
+import diagnostic_updater
+import rospy
+from anyscale_msgs.msg import MigrationEvent, ScaleStatus
+from anyscale_msgs.msg import Mapping as MappingMsg
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseWithCovarianceStamped
+
+from . import ros_convert as conv
+from .agent_client import AgentClient, Worker, wait_registered
+from .allocators import make_allocator
+from .characterisation import characterise
+from .cost import perf
+from .decision_engine import DecisionEngine, DecisionParams, RenewLeases, StartNode, StopNode
+from .model import ModelError, load_model
+
+WATCH_RESEND_S = 10.0     # re-send watch lists now and then: an agent may have restarted
+REGISTER_TIMEOUT_S = 30.0  # a started node not registered by then is reported as failed
+
+
+class ParamError(ValueError):
+    pass
+
+
+@dataclass(frozen=True)
+class NodeParams:
+    model: str
+    allocator: str
+    period_s: float
+    engine: DecisionParams
+    service_timeout_s: float
+    stop_timeout_s: float
+    adopt_wait_s: float
+
+
+def read_params(get=rospy.get_param) -> NodeParams:
+    """The private parameters, checked; ParamError names the bad one."""
+    def number(name, default, minimum=0.0):
+        value = get("~" + name, default)
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            raise ParamError(f"~{name}: expected a number, got {value!r}") from None
+        if not math.isfinite(value) or value < minimum:
+            raise ParamError(f"~{name}: expected a finite number >= {minimum:g}, got {value!r}")
+        return value
+
+    model = get("~model", None)
+    if not isinstance(model, str) or not model:
+        raise ParamError("~model: required (path of the system model YAML)")
+    engine = DecisionParams(hysteresis_s=number("hysteresis_s", 10.0),
+                            lease_s=number("lease_s", 3.0, 0.1),
+                            status_timeout_s=number("status_timeout_s", 1.5, 0.1),
+                            act_at_tolerance=number("act_at_tolerance", 0.5),
+                            startup_grace_s=number("startup_grace_s", 5.0))
+    if engine.act_at_tolerance > 1.0:
+        raise ParamError(f"~act_at_tolerance: expected 0..1, got {engine.act_at_tolerance:g}")
+    return NodeParams(model, str(get("~allocator", "paper")), number("period_s", 1.0, 0.05),
+                      engine, number("service_timeout_s", 5.0, 0.1),
+                      number("stop_timeout_s", 20.0, 0.1), number("adopt_wait_s", 5.0))
+
+
+class DecisionNode:
+    def __init__(self, params: NodeParams):
+        self.params = params
+        self.model = load_model(params.model)
+        try:
+            allocator = make_allocator(params.allocator)
+        except ValueError as e:
+            raise ParamError(f"~allocator: {e}") from None
+        self.ch = characterise(self.model)
+        self.master = self.model.master.name
+        self.engine = DecisionEngine(self.ch, allocator, params.engine, time.monotonic())
+        self.lock = threading.Lock()          # the engine and the reports, across threads
+        self.reports: Dict[str, object] = {}
+        self.statuses: Dict[str, ScaleStatus] = {}
+        self.violating: List[str] = []
+        self.watch_sent: Dict[str, tuple] = {}
+        self.starting = set()                 # (node, scale) of starts not yet answered
+        self.agents = AgentClient(params.service_timeout_s, params.stop_timeout_s)
+        self.moves = Worker("anyscale_moves")
+        self.scale_workers = {s: Worker(f"anyscale_{s}") for s in self.ch.scale_names}
+        self.caller_id = rospy.get_name()
+        rospy.set_param("/anyscale/model", os.path.abspath(params.model))  # `anyscale top`
+        self.mapping_pub = rospy.Publisher("/anyscale/mapping", MappingMsg, queue_size=1,
+                                           latch=True)
+        self.event_pub = rospy.Publisher("/anyscale/events", MigrationEvent, queue_size=50)
+        self.updater = diagnostic_updater.Updater()
+        self.updater.setHardwareID("anyscale_decision")
+        self.updater.add("mapping", self._diag_mapping)
+        self.updater.add("connections", self._diag_connections)
+        self.updater.add("scales", self._diag_scales)
+        rospy.Subscriber("/anyscale/status", ScaleStatus, self._on_status, queue_size=20)
+        for node in self.model.nodes:
+            if node.state_handoff is not None and node.state_handoff.kind == "pose":
+                rospy.Subscriber(node.state_handoff.topic, PoseWithCovarianceStamped,
+                                 self._on_pose, callback_args=node.name, queue_size=1)
+
+    # --- inputs -------------------------------------------------------------------------------
+    def _on_status(self, msg):
+        if msg.scale not in self.scale_workers:
+            rospy.logwarn_once("anyscale decision: status from scale '%s', which is not in %s",
+                               msg.scale, self.params.model)
+            return
+        report = conv.scale_report_from_msg(msg, time.monotonic(), self.ch.node_names)
+        with self.lock:
+            self.reports[msg.scale] = report
+            self.statuses[msg.scale] = msg
+
+    def _on_pose(self, msg, node):
+        params = conv.handoff_params_from_pose(msg)
+        with self.lock:
+            self.engine.observe_handoff(node, params)
+
+    # --- the loop -----------------------------------------------------------------------------
+    def run(self):
+        self._wait_for_agents()
+        with self.lock:
+            before = self.engine.mapping()
+            result = self.engine.adopt_or_start(dict(self.reports), time.monotonic())
+        self._dispatch(result, before, initial=True)
+        rate = rospy.Rate(1.0 / self.params.period_s)
+        while not rospy.is_shutdown():
+            try:
+                rate.sleep()
+            except rospy.ROSInterruptException:
+                break
+            with self.lock:
+                before = self.engine.mapping()
+                result = self.engine.tick(dict(self.reports), time.monotonic())
+                self.violating = result.violating
+            self._dispatch(result, before)
+            self._send_watch_lists()
+            self.updater.update()
+
+    def _wait_for_agents(self):
+        """The master's agent must answer before anything can start; the others get
+        ~adopt_wait_s to report what they already run, so a restart adopts it."""
+        last_log = time.monotonic()
+        while not rospy.is_shutdown() and self.master not in self.reports:
+            if time.monotonic() - last_log > 5.0:
+                rospy.logwarn("anyscale decision: waiting for the agent of the master scale "
+                              "'%s' (/anyscale/status)", self.master)
+                last_log = time.monotonic()
+            rospy.sleep(0.1)
+        end = time.monotonic() + self.params.adopt_wait_s
+        while not rospy.is_shutdown() and time.monotonic() < end and \
+                len(self.reports) < len(self.ch.scale_names):
+            rospy.sleep(0.1)
+        missing = sorted(set(self.ch.scale_names) - set(self.reports))
+        if missing:
+            rospy.logwarn("anyscale decision: no status from %s within %.1f s; starting without",
+                          ", ".join(missing), self.params.adopt_wait_s)
+
+    def _dispatch(self, result, before, initial=False):
+        now_stamp = rospy.Time.now()
+        decided = time.monotonic()
+        jobs: Dict[str, list] = {}
+        for action in result.actions:
+            if isinstance(action, RenewLeases):
+                self.scale_workers[action.scale].submit(
+                    lambda a=action: self._renew(a), key="renew")
+            else:
+                jobs.setdefault(action.node, []).append(action)
+                if isinstance(action, StartNode):
+                    with self.lock:
+                        self.starting.add((action.node, action.scale))
+        events = {e.node: e for e in result.events}
+        for node, actions in jobs.items():
+            self.moves.submit(lambda n=node, a=actions, e=events.get(node):
+                              self._execute_move(n, a, e, now_stamp, decided))
+        for e in result.events:
+            if not any(isinstance(a, StartNode) for a in jobs.get(e.node, ())):
+                # Adopted in place (at most a duplicate stopped): nothing to wait for.
+                self._publish_event(e.kind, e.node, e.from_scale, e.to_scale, e.reason,
+                                    now_stamp, 0.0)
+        after = self.engine.mapping()
+        if initial or after != before:
+            if not initial:
+                rospy.loginfo("anyscale decision: %s", conv.describe_change(
+                    before, after, {e.node: e.reason for e in result.events}))
+            else:
+                rospy.loginfo("anyscale decision: initial mapping %s", after)
+            self._publish_mapping()
+            self._send_watch_lists(force=initial)
+
+    # --- actions (on the worker threads) ------------------------------------------------------
+    def _execute_move(self, node, actions, event, stamp, decided):
+        """One move's actions in order: a reachable old instance is stopped before the new one
+        starts (roscpp's same-name hand-over can end both, ros_comm#2018)."""
+        for action in actions:
+            if isinstance(action, StopNode):
+                try:
+                    reply = self.agents.stop(action.scale, node)
+                    if not reply.success:
+                        rospy.logwarn("anyscale decision: stop %s on %s: %s", node, action.scale,
+                                      reply.message)
+                except Exception as e:  # noqa: BLE001 - the new start replaces it anyway
+                    rospy.logwarn("anyscale decision: stop %s on %s failed: %s", node,
+                                  action.scale, e)
+            elif isinstance(action, StartNode):
+                self._start(action, event, stamp, decided)
+
+    def _start(self, action: StartNode, event, stamp, decided):
+        node, scale = action.node, action.scale
+        try:
+            reply = self.agents.start(scale, node,
+                                      conv.param_overrides_to_kv(action.param_overrides),
+                                      action.lease_s)
+            ok, message, pid = reply.success, reply.message, reply.pid
+        except Exception as e:  # noqa: BLE001 - reported as a failed start below
+            ok, message, pid = False, str(e), 0
+        with self.lock:
+            self.starting.discard((node, scale))
+        if not ok:
+            rospy.logerr("anyscale decision: start %s on %s failed: %s", node, scale, message)
+            self._publish_event("failed", node, event.from_scale if event else "", scale,
+                                f"start on {scale} failed: {message}", stamp, math.nan, False)
+            with self.lock:
+                back = self.engine.action_failed(node, scale, time.monotonic())
+            if back is not None:
+                rospy.loginfo("anyscale decision: %s", conv.describe_change(
+                    {node: scale}, {node: back.to_scale}, {node: back.reason}))
+                self._publish_mapping()
+                self._start(StartNode(node, back.to_scale, action.param_overrides, 0.0), back,
+                            rospy.Time.now(), time.monotonic())
+            return
+        if event is not None:
+            # Waiting for the registration must not hold up the next move.
+            threading.Thread(target=self._report_when_registered,
+                             args=(node, scale, pid, event, stamp, decided), daemon=True).start()
+
+    def _report_when_registered(self, node, scale, pid, event, stamp, decided):
+        registered = wait_registered("/" + node, pid, self.caller_id, REGISTER_TIMEOUT_S,
+                                     lambda: self._agent_reports_running(scale, node, pid))
+        reason = event.reason if registered else \
+            f"{event.reason}; not registered within {REGISTER_TIMEOUT_S:g} s"
+        self._publish_event(event.kind, node, event.from_scale, scale, reason, stamp,
+                            time.monotonic() - decided if registered else math.nan, registered)
+
+    def _agent_reports_running(self, scale, node, pid):
+        with self.lock:
+            status = self.statuses.get(scale)
+        return status is not None and any(
+            p.name == "/" + node and p.pid == pid and p.state == p.RUNNING for p in status.nodes)
+
+    def _renew(self, action: RenewLeases):
+        # A node whose start is still queued gets its lease from the start itself.
+        with self.lock:
+            nodes = [n for n in action.nodes if (n, action.scale) not in self.starting]
+        if not nodes:
+            return
+        try:
+            reply = self.agents.renew(action.scale, nodes, action.lease_s)
+            if not reply.success:
+                rospy.logwarn_throttle(5.0, "anyscale decision: renew on %s: %s (not running: %s)"
+                                       % (action.scale, reply.message, reply.not_running))
+        except Exception as e:  # noqa: BLE001 - the engine sees a dead scale in its status
+            rospy.logwarn_throttle(5.0, "anyscale decision: renew on %s failed: %s"
+                                   % (action.scale, e))
+
+    def _send_watch_lists(self, force=False):
+        with self.lock:
+            lists = conv.watched_topics(self.model, self.engine.mapping())
+            seen = set(self.reports)
+        now = time.monotonic()
+        for scale, topics in lists.items():
+            last = self.watch_sent.get(scale)
+            if scale not in seen or (not force and last and last[0] == topics and
+                                     now - last[1] < WATCH_RESEND_S):
+                continue
+            self.watch_sent[scale] = (topics, now)
+            self.scale_workers[scale].submit(lambda s=scale, t=topics: self._set_watched(s, t),
+                                             key="watch")
+
+    def _set_watched(self, scale, topics):
+        try:
+            self.agents.set_watched(scale, topics)
+        except Exception as e:  # noqa: BLE001 - retried at the next resend
+            self.watch_sent.pop(scale, None)
+            rospy.logwarn_throttle(5.0, "anyscale decision: set_watched_topics on %s failed: %s"
+                                   % (scale, e))
+
+    # --- outputs ------------------------------------------------------------------------------
+    def _publish_mapping(self):
+        with self.lock:
+            mapping = self.engine.mapping()
+            msg = conv.mapping_msg(mapping, perf(self.ch, self.engine.assign),
+                                   self.engine.objective.total(time.monotonic()),
+                                   self.params.allocator, rospy.Time.now())
+        self.mapping_pub.publish(msg)
+
+    def _publish_event(self, kind, node, from_scale, to_scale, reason, stamp, duration, ok=True):
+        self.event_pub.publish(conv.event_msg(kind, node, from_scale, to_scale, reason, stamp,
+                                              duration, ok))
+        if kind != "start":
+            rospy.loginfo("anyscale decision: event %s %s %s -> %s (%s) %.2f s", kind, node,
+                          from_scale or "-", to_scale, reason, duration)
+
+    def _diag_mapping(self, stat):
+        with self.lock:
+            mapping = self.engine.mapping()
+        remote = sum(1 for s in mapping.values() if s != self.master)
+        stat.summary(DiagnosticStatus.OK, f"{remote} of {len(mapping)} nodes off {self.master}")
+        for node, scale in mapping.items():
+            stat.add(node, scale)
+        return stat
+
+    def _diag_connections(self, stat):
+        with self.lock:
+            violating = list(self.violating)
+        if violating:
+            stat.summary(DiagnosticStatus.WARN, "below freq_min: " + ", ".join(violating))
+        else:
+            stat.summary(DiagnosticStatus.OK, "every judged connection within its tolerance")
+        return stat
+
+    def _diag_scales(self, stat):
+        now = time.monotonic()
+        with self.lock:
+            ages = {s: now - r.received_at for s, r in self.reports.items()}
+        stale = [s for s in self.ch.scale_names
+                 if ages.get(s, math.inf) > self.params.engine.status_timeout_s]
+        level = DiagnosticStatus.WARN if stale else DiagnosticStatus.OK
+        stat.summary(level, "silent: " + ", ".join(stale) if stale else "all scales reporting")
+        for s in self.ch.scale_names:
+            stat.add(s, f"last status {ages[s]:.1f} s ago" if s in ages else "never seen")
+        return stat
+
+
+def main(argv=None) -> int:
+    """Entry point of nodes/decision_node: exit 1 with one FATAL line on bad params or model."""
+    rospy.init_node("anyscale_decision", argv=argv)
+    try:
+        node = DecisionNode(read_params())
+    except (ParamError, ModelError) as e:
+        rospy.logfatal("anyscale decision: %s", e)
+        return 1
+    node.run()
+    return 0

@@ -1,0 +1,101 @@
+"""Pure conversions between anyscale_msgs / standard messages and the decision engine's terms."""
+import math
+from typing import Dict, Iterable, List, Mapping, Sequence, Tuple
+
+from anyscale_msgs.msg import MigrationEvent, NodeAssignment, NodeProcess
+from anyscale_msgs.msg import Mapping as MappingMsg
+from diagnostic_msgs.msg import KeyValue
+
+from .decision_engine import ScaleReport, effective_rate, pose_handoff_params
+from .model import SystemModel
+
+# A node counts as running on a scale from its fork on: adopting a STARTING node avoids
+# starting a duplicate while it is still importing.
+ALIVE_STATES = (NodeProcess.STARTING, NodeProcess.RUNNING)
+
+EVENT_KINDS = {"start": MigrationEvent.START, "migrate": MigrationEvent.MIGRATE,
+               "migrate_back": MigrationEvent.MIGRATE_BACK, "adopt": MigrationEvent.ADOPT,
+               "failed": MigrationEvent.FAILED}
+EVENT_NAMES = {v: k for k, v in EVENT_KINDS.items()}
+
+
+def model_node_name(process_name: str) -> str:
+    """The model's name of an agent's fully qualified node name ('/relay' -> 'relay')."""
+    return process_name[1:] if process_name.startswith("/") else process_name
+
+
+def scale_report_from_msg(msg, received_at: float, model_node_names: Iterable[str]) -> ScaleReport:
+    """A ScaleStatus as the engine's ScaleReport; nodes outside the model are left out (their
+    CPU then counts as background load, which is what it is)."""
+    names = set(model_node_names)
+    running = {model_node_name(p.name): float(p.cpu_percent) for p in msg.nodes
+               if p.state in ALIVE_STATES and model_node_name(p.name) in names}
+    rates = {t.topic: effective_rate(float(t.rate_hz), float(t.last_message_age_s))
+             for t in msg.topics}
+    capacity = float(msg.cpu_quota_cores) if msg.cpu_quota_cores > 0 else float(msg.cores)
+    # The master's own link is the loopback of roscore: always up, no estimate.
+    link_up = True if msg.is_master else bool(msg.link.up)
+    bandwidth = math.nan if msg.is_master else float(msg.link.bandwidth_mbps)
+    return ScaleReport(msg.scale, received_at, float(msg.cpu_percent), capacity, running,
+                       rates, link_up, bandwidth)
+
+
+def watched_topics(model: SystemModel, mapping: Mapping[str, str]) -> Dict[str, List[str]]:
+    """Per scale, the topics of the model's connections whose subscriber runs there."""
+    out: Dict[str, List[str]] = {s.name: [] for s in model.scales}
+    for c in model.connections:
+        scale = mapping.get(c.subscriber)
+        if scale in out and c.topic not in out[scale]:
+            out[scale].append(c.topic)
+    return {s: sorted(t) for s, t in out.items()}
+
+
+def yaml_scalar(value) -> str:
+    """A parameter value as YAML text for StartNode.param_overrides (NaN/inf in YAML's
+    spelling, which Python's repr does not use)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        if math.isnan(value):
+            return ".nan"
+        if math.isinf(value):
+            return ".inf" if value > 0 else "-.inf"
+        return repr(value)
+    return str(value)
+
+
+def param_overrides_to_kv(overrides: Sequence[Tuple[str, object]]) -> List[KeyValue]:
+    return [KeyValue(key=k, value=yaml_scalar(v)) for k, v in overrides]
+
+
+def handoff_params_from_pose(msg) -> Dict[str, float]:
+    """AMCL's initial-pose parameters from a geometry_msgs/PoseWithCovarianceStamped."""
+    p, q = msg.pose.pose.position, msg.pose.pose.orientation
+    yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    cov = msg.pose.covariance
+    return pose_handoff_params(p.x, p.y, yaw, cov[0], cov[7], cov[35])
+
+
+def mapping_msg(mapping: Mapping[str, str], perf: float, objective: float, allocator: str,
+                stamp) -> MappingMsg:
+    msg = MappingMsg(perf=perf, objective=objective, allocator=allocator)
+    msg.header.stamp = stamp
+    msg.assignments = [NodeAssignment(node=n, scale=s) for n, s in mapping.items()]
+    return msg
+
+
+def event_msg(kind: str, node: str, from_scale: str, to_scale: str, reason: str, stamp,
+              duration_s: float = math.nan, success: bool = True) -> MigrationEvent:
+    msg = MigrationEvent(kind=EVENT_KINDS[kind], node=node, from_scale=from_scale,
+                         to_scale=to_scale, reason=reason, duration_s=duration_s,
+                         success=success)
+    msg.header.stamp = stamp
+    return msg
+
+
+def describe_change(before: Mapping[str, str], after: Mapping[str, str],
+                    reasons: Mapping[str, str]) -> str:
+    """One log line for a mapping change: what moved where and why."""
+    moved = [f"{n} {before.get(n, '?')} -> {s}" + (f" ({reasons[n]})" if n in reasons else "")
+             for n, s in after.items() if before.get(n) != s]
+    return "mapping changed: " + ("; ".join(moved) if moved else "no node moved")

@@ -1,0 +1,118 @@
+"""The decision node's message conversions and parameter checks, on constructed messages
+(no roscore)."""
+import math
+
+import pytest
+
+pytest.importorskip("anyscale_msgs.msg")  # the built workspace's messages
+
+from anyscale_msgs.msg import (LinkStatistics, MigrationEvent, NodeProcess,  # noqa: E402
+                               ScaleStatus, TopicStatistics)
+from geometry_msgs.msg import PoseWithCovarianceStamped  # noqa: E402
+
+from anyscale_core import ros_convert as conv  # noqa: E402
+from anyscale_core.decision_ros import ParamError, read_params  # noqa: E402
+
+
+def status(scale="laptop", is_master=False, **kw):
+    msg = ScaleStatus(scale=scale, is_master=is_master, cores=4, cpu_percent=25.0,
+                      link=LinkStatistics(peer_scale="robot", up=True, bandwidth_mbps=12.5))
+    msg.nodes = [NodeProcess(name="/amcl", state=NodeProcess.RUNNING, cpu_percent=40.0),
+                 NodeProcess(name="/ar_recognition", state=NodeProcess.STARTING, cpu_percent=5.0),
+                 NodeProcess(name="/old", state=NodeProcess.EXITED, cpu_percent=0.0),
+                 NodeProcess(name="/amcl_gone", state=NodeProcess.LEASE_EXPIRED),
+                 NodeProcess(name="/rviz", state=NodeProcess.RUNNING, cpu_percent=9.0)]
+    msg.topics = [TopicStatistics(topic="/scan", rate_hz=10.0, last_message_age_s=0.05),
+                  TopicStatistics(topic="/amcl_pose", rate_hz=5.0, last_message_age_s=2.0),
+                  TopicStatistics(topic="/never", rate_hz=0.0, last_message_age_s=math.inf)]
+    for k, v in kw.items():
+        setattr(msg, k, v)
+    return msg
+
+
+def test_scale_report_keeps_live_model_nodes_and_effective_rates():
+    names = ["amcl", "ar_recognition", "old", "amcl_gone"]
+    r = conv.scale_report_from_msg(status(), 12.0, names)
+    assert (r.scale, r.received_at, r.cpu_percent, r.capacity_cores) == ("laptop", 12.0, 25.0, 4.0)
+    assert r.running == {"amcl": 40.0, "ar_recognition": 5.0}   # rviz is not in the model
+    assert r.topic_rates["/scan"] == 10.0
+    assert r.topic_rates["/amcl_pose"] == pytest.approx(0.5)     # silent for 2 s
+    assert r.topic_rates["/never"] == 0.0
+    assert r.link_up and r.bandwidth_mbps == 12.5
+
+
+def test_scale_report_uses_the_quota_and_the_master_link_is_always_up():
+    msg = status("robot", True, cpu_quota_cores=1.5)
+    msg.link = LinkStatistics(up=False, bandwidth_mbps=float("nan"))
+    r = conv.scale_report_from_msg(msg, 0.0, [])
+    assert r.capacity_cores == 1.5 and r.link_up and math.isnan(r.bandwidth_mbps)
+    down = conv.scale_report_from_msg(status(link=LinkStatistics(up=False)), 0.0, [])
+    assert not down.link_up
+
+
+def test_watched_topics_follow_the_subscribers_scale(testbed):
+    mapping = {n.name: "robot" for n in testbed.nodes}
+    mapping["amcl"] = "laptop"
+    lists = conv.watched_topics(testbed, mapping)
+    into_amcl = sorted({c.topic for c in testbed.connections if c.subscriber == "amcl"})
+    assert lists["laptop"] == into_amcl
+    assert lists["robot"] == sorted({c.topic for c in testbed.connections
+                                     if c.subscriber != "amcl"})
+    assert "/amcl_pose" in lists["robot"]          # amcl publishes it, the robot's EKF receives
+
+
+@pytest.mark.parametrize("value, text", [(1.5, "1.5"), (float("nan"), ".nan"),
+                                         (float("-inf"), "-.inf"), (True, "true"), (3, "3")])
+def test_param_overrides_are_yaml_text(value, text):
+    kv = conv.param_overrides_to_kv([("initial_pose_x", value)])
+    assert (kv[0].key, kv[0].value) == ("initial_pose_x", text)
+
+
+def test_pose_handoff_reads_position_yaw_and_covariance():
+    msg = PoseWithCovarianceStamped()
+    msg.pose.pose.position.x, msg.pose.pose.position.y = 1.0, -2.0
+    msg.pose.pose.orientation.z = math.sin(0.75)       # yaw 1.5 rad
+    msg.pose.pose.orientation.w = math.cos(0.75)
+    cov = [0.0] * 36
+    cov[0], cov[7], cov[35] = 0.25, 0.5, 0.1
+    msg.pose.covariance = cov
+    p = conv.handoff_params_from_pose(msg)
+    assert p["initial_pose_x"] == 1.0 and p["initial_pose_y"] == -2.0
+    assert p["initial_pose_a"] == pytest.approx(1.5)
+    assert (p["initial_cov_xx"], p["initial_cov_yy"], p["initial_cov_aa"]) == (0.25, 0.5, 0.1)
+
+
+def test_mapping_and_event_messages():
+    m = conv.mapping_msg({"amcl": "laptop", "laser": "robot"}, 12.5, 100.0, "paper", None)
+    assert [(a.node, a.scale) for a in m.assignments] == [("amcl", "laptop"), ("laser", "robot")]
+    assert (m.perf, m.objective, m.allocator) == (12.5, 100.0, "paper")
+    e = conv.event_msg("migrate_back", "amcl", "laptop", "robot", "link to laptop down", None,
+                       0.4)
+    assert (e.kind, e.success, e.duration_s) == (MigrationEvent.MIGRATE_BACK, True, 0.4)
+    failed = conv.event_msg("failed", "amcl", "robot", "laptop", "refused", None, success=False)
+    assert failed.kind == MigrationEvent.FAILED and math.isnan(failed.duration_s)
+
+
+def test_describe_change_names_every_move_and_reason():
+    line = conv.describe_change({"a": "robot", "b": "robot"}, {"a": "laptop", "b": "robot"},
+                                {"a": "laptop can take it"})
+    assert line == "mapping changed: a robot -> laptop (laptop can take it)"
+
+
+def params(**given):
+    return lambda name, default=None: given.get(name.lstrip("~"), default)
+
+
+def test_params_defaults_and_errors():
+    p = read_params(params(model="/m.yaml"))
+    assert (p.model, p.allocator, p.period_s) == ("/m.yaml", "paper", 1.0)
+    assert (p.engine.hysteresis_s, p.engine.lease_s, p.engine.status_timeout_s) == (10.0, 3.0, 1.5)
+    assert (p.engine.act_at_tolerance, p.engine.startup_grace_s) == (0.5, 5.0)
+    with pytest.raises(ParamError, match="~model"):
+        read_params(params())
+    with pytest.raises(ParamError, match="~period_s"):
+        read_params(params(model="/m.yaml", period_s="fast"))
+    with pytest.raises(ParamError, match="~lease_s"):
+        read_params(params(model="/m.yaml", lease_s=-1))
+    with pytest.raises(ParamError, match="~act_at_tolerance"):
+        read_params(params(model="/m.yaml", act_at_tolerance=1.5))

@@ -1,0 +1,81 @@
+"""`anyscale top`'s frame, rendered from constructed messages (no roscore)."""
+import math
+
+import pytest
+
+pytest.importorskip("anyscale_msgs.msg")  # the built workspace's messages
+
+import rospy  # noqa: E402
+from anyscale_msgs.msg import (LinkStatistics, Mapping, MigrationEvent, NodeAssignment,  # noqa: E402
+                               NodeProcess, ScaleStatus, TopicStatistics)
+
+from anyscale_core.top_view import render  # noqa: E402
+
+
+def frame(testbed, **kw):
+    robot = ScaleStatus(scale="robot", is_master=True, cores=2, cpu_percent=55.0,
+                        memory_total_bytes=4 * 2**30, memory_available_bytes=3 * 2**30)
+    robot.nodes = [NodeProcess(name="/amcl", state=NodeProcess.EXITED),
+                   NodeProcess(name="/laser", state=NodeProcess.RUNNING, cpu_percent=3.0,
+                               rss_bytes=20 * 2**20)]
+    robot.topics = [TopicStatistics(topic="/scan", rate_hz=9.8, last_message_age_s=0.1),
+                    TopicStatistics(topic="/amcl_pose", rate_hz=1.0, last_message_age_s=0.2)]
+    laptop = ScaleStatus(scale="laptop", cores=4, cpu_percent=20.0,
+                         link=LinkStatistics(peer_scale="robot", up=True, rtt_mean_s=0.004,
+                                             bandwidth_mbps=18.0))
+    laptop.nodes = [NodeProcess(name="/amcl", state=NodeProcess.RUNNING, cpu_percent=36.0,
+                                rss_bytes=150 * 2**20, lease_expiry=rospy.Time(102, 500000000))]
+    laptop.topics = [TopicStatistics(topic="/scan", rate_hz=10.0, last_message_age_s=0.05)]
+    mapping = Mapping(perf=180.0, objective=5000.0, allocator="paper")
+    mapping.assignments = [NodeAssignment(node=n.name, scale="robot") for n in testbed.nodes]
+    mapping.assignments[[n.name for n in testbed.nodes].index("amcl")].scale = "laptop"
+    events = [MigrationEvent(kind=MigrationEvent.MIGRATE, node="amcl", from_scale="robot",
+                             to_scale="laptop", reason="laptop can take it", duration_s=0.8,
+                             success=True)]
+    args = dict(statuses={"robot": robot, "laptop": laptop}, mapping=mapping, events=events,
+                model=testbed, now=100.0)
+    args.update(kw)
+    return render(**args)
+
+
+def row(text, first):
+    return next(ln for ln in text.splitlines() if ln.split()[:1] == [first])
+
+
+def test_scales_nodes_connections_and_events(testbed):
+    text = frame(testbed)
+    assert "Perf (Eq. 1) 180.0" in text
+    assert row(text, "robot").split()[1:4] == ["55.0%", "25.0%", "master"]
+    assert "up" in row(text, "laptop") and "4.0 ms" in row(text, "laptop")
+    assert "18.0 Mbit/s" in row(text, "laptop")
+    amcl = row(text, "amcl").split()              # the live instance, not the exited one
+    assert amcl[:4] == ["amcl", "laptop", "RUNNING", "36.0%"] and "2.5" in amcl
+    assert row(text, "laser").split()[:3] == ["laser", "robot", "RUNNING"]
+    assert "not seen" in row(text, "ekf")
+    scan_amcl = row(text, "laser->amcl")          # measured where amcl runs: the laptop
+    assert "10.0 Hz" in scan_amcl and scan_amcl.endswith("ok")
+    assert "below min" in row(text, "amcl->ekf")  # 1 Hz on the robot
+    assert "MIGRATE" in text and "laptop can take it" in text and "0.80 s" in text
+
+
+def test_without_mapping_model_or_events(testbed):
+    text = frame(testbed, mapping=None, model=None, events=[])
+    assert "none yet" in text and "CONNECTION" not in text
+    assert row(text, "amcl").split()[1] == "laptop"
+    assert "none" in text.splitlines()[-1]
+
+
+def test_a_link_down_and_unknown_values_show_plainly(testbed):
+    status = ScaleStatus(scale="laptop", link=LinkStatistics(up=False, rtt_mean_s=math.nan,
+                                                             bandwidth_mbps=math.nan))
+    text = frame(testbed, statuses={"laptop": status})
+    assert row(text, "laptop").split()[3:6] == ["DOWN", "-", "-"]
+    assert "not measured on robot" in row(text, "odometry->ekf")
+
+
+def test_top_without_a_master_says_so(monkeypatch, capsys):
+    from anyscale_core.cli import main
+    monkeypatch.setenv("ROS_MASTER_URI", "http://127.0.0.1:9/")   # nothing listens there
+    assert main(["top", "--once"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("anyscale top: error: no ROS master at http://127.0.0.1:9/")

@@ -49,8 +49,10 @@ struct SupervisorOptions
   // the agent and reaped by it rather than by init, out of our sight.
   bool subreaper = true;
   // Children get this signal if the agent dies without stopping them (SIGKILL, crash): a node
-  // on a remote scale must not outlive the agent that enforces its lease. 0 disables it.
-  int parent_death_signal = SIGTERM;
+  // on a remote scale must not outlive the agent that enforces its lease. SIGKILL, because a
+  // handled signal can be lost: in a full-suite run a rospy node that got SIGTERM this way
+  // while starting up lived on until a same-name node replaced it. 0 disables it.
+  int parent_death_signal = SIGKILL;
 };
 
 class Supervisor

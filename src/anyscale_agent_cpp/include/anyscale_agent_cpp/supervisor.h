@@ -50,8 +50,9 @@ struct SupervisorOptions
   bool subreaper = true;
   // Children get this signal if the agent dies without stopping them (SIGKILL, crash): a node
   // on a remote scale must not outlive the agent that enforces its lease. SIGKILL, because a
-  // handled signal can be lost: in a full-suite run a rospy node that got SIGTERM this way
-  // while starting up lived on until a same-name node replaced it. 0 disables it.
+  // handled signal may never end the node: rospy runs its shutdown inside the SIGTERM handler
+  // on the main thread, and a rospy talker caught in publish() that way was seen blocked on a
+  // futex for good, ignoring even the master's shutdown request. 0 disables it.
   int parent_death_signal = SIGKILL;
 };
 

@@ -141,17 +141,24 @@ def grey_to_occupancy(grey, negate, occupied_thresh, free_thresh, mode="trinary"
     return out
 
 
+def read_yaml_mapping(path, what, expected):
+    """The YAML mapping in a file; MapError names the file and what is wrong (`what` names the
+    kind of file, `expected` the keys it should have)."""
+    if not os.path.isfile(path):
+        raise MapError("%s: %s not found" % (path, what))
+    try:
+        with open(path) as f:
+            data = yaml.safe_load(f)
+    except yaml.YAMLError as e:
+        raise MapError("%s: malformed YAML (%s)" % (path, str(e).splitlines()[0]))
+    if not isinstance(data, dict):
+        raise MapError("%s: expected a mapping with %s" % (path, expected))
+    return data
+
+
 def load_map(yaml_path):
     """OccupancyMap from a map_server YAML file; MapError names the file and what is wrong."""
-    if not os.path.isfile(yaml_path):
-        raise MapError("%s: map YAML not found" % yaml_path)
-    try:
-        with open(yaml_path) as f:
-            meta = yaml.safe_load(f)
-    except yaml.YAMLError as e:
-        raise MapError("%s: malformed YAML (%s)" % (yaml_path, str(e).splitlines()[0]))
-    if not isinstance(meta, dict):
-        raise MapError("%s: expected a mapping with image, resolution, origin, ..." % yaml_path)
+    meta = read_yaml_mapping(yaml_path, "map YAML", "image, resolution, origin, ...")
     image = _require(meta, "image", str, yaml_path)
     resolution = _require(meta, "resolution", float, yaml_path)
     if resolution <= 0:

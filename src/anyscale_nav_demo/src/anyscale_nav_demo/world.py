@@ -3,25 +3,18 @@ import math
 import os
 
 import numpy as np
-import yaml
 from scipy import ndimage
 
 from .diff_drive import integrate_arc, wheel_arcs_to_motion
-from .occupancy_map import MapError, load_map
+from .occupancy_map import MapError, load_map, read_yaml_mapping
 
 
 class World:
     """Ground-truth occupancy (map + extra obstacles), markers and a distance field for bumping."""
 
     def __init__(self, world_file):
-        if not os.path.isfile(world_file):
-            raise MapError("%s: world file not found" % world_file)
-        try:
-            with open(world_file) as f:
-                desc = yaml.safe_load(f)
-        except yaml.YAMLError as e:
-            raise MapError("%s: malformed YAML (%s)" % (world_file, str(e).splitlines()[0]))
-        if not isinstance(desc, dict) or "map" not in desc:
+        desc = read_yaml_mapping(world_file, "world file", "a 'map' key")
+        if "map" not in desc:
             raise MapError("%s: expected a mapping with a 'map' key" % world_file)
         map_path = os.path.join(os.path.dirname(world_file), str(desc["map"]))
         self.map = load_map(map_path)

@@ -15,6 +15,9 @@ PUBLISHES = {
     "navigation": {"/cmd_vel", "/navigation/global_plan", "/navigation/local_plan",
                    "/navigation/current_goal", "/navigation/speed_limit", "/navigation/status"},
     "initial_pose_publisher": {"/initialpose"}, "world_sim": {"/sim/ground_truth"},
+    # anyscale_core's, on the test bed
+    "configuration_path": {"/anyscale/configuration_path"},
+    "link_shaper": {"/anyscale/wifi/coverage", "/anyscale/wifi/access_point"},
 }
 
 

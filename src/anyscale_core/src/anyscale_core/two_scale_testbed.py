@@ -7,6 +7,7 @@ iproute2 and the cgroup filesystem are driven directly rather than through a lib
 is not packaged for Debian's Python here, and these are a handful of well-known commands.
 """
 from dataclasses import dataclass
+import fcntl
 import os
 import signal
 import subprocess
@@ -78,9 +79,10 @@ def run(argv: List[str], check: bool = True) -> subprocess.CompletedProcess:
 
 
 def namespace_exec(end: ScaleEnd, argv: List[str]) -> List[str]:
-    """argv that runs a program inside the scale's namespace (and, by the caller's choice of
-    cgroup for the spawned process, under its CPU quota)."""
-    return ["ip", "netns", "exec", end.namespace] + list(argv)
+    """argv that runs a program inside the scale's network namespace. nsenter, not `ip netns
+    exec`: the latter also remounts /sys for the namespace, which hides /sys/fs/cgroup from
+    the program, and the agents read their CPU quota and usage there."""
+    return ["nsenter", f"--net=/var/run/netns/{end.namespace}", "--"] + list(argv)
 
 
 class CpuQuota:
@@ -140,6 +142,20 @@ def missing_capabilities(need_cgroups: bool = True) -> List[str]:
     return missing
 
 
+def claim_layout(layout: TwoScaleLayout, lock_dir: str = "/run"):
+    """An exclusive lock on the layout's namespace names, held while the bed exists: a second
+    run would otherwise tear down the first one's namespaces as its leftovers."""
+    path = os.path.join(lock_dir, f"anyscale_testbed_{layout.robot.namespace}.lock")
+    f = open(path, "a+")
+    try:
+        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        f.close()
+        raise TwoScaleError(f"another test bed is running with namespace "
+                            f"{layout.robot.namespace} (lock {path}); wait for it to end") from None
+    return f
+
+
 class TwoScaleTestbed:
     """Context manager: builds the namespaces, link and quotas; tears all of it down on exit,
     also after an exception. Processes are started with `start(scale, argv, ...)` and ended
@@ -153,6 +169,7 @@ class TwoScaleTestbed:
         self.processes: List[subprocess.Popen] = []
 
     def __enter__(self) -> "TwoScaleTestbed":
+        self._lock = claim_layout(self.layout)
         self.teardown()     # leftovers of an earlier run that was killed
         try:
             for argv in setup_commands(self.layout):
@@ -165,7 +182,10 @@ class TwoScaleTestbed:
         return self
 
     def __exit__(self, *exc):
-        self.teardown()
+        try:
+            self.teardown()
+        finally:
+            self._lock.close()
 
     def end(self, scale: str) -> ScaleEnd:
         return next(e for e in self.layout.ends if e.scale == scale)
@@ -179,17 +199,22 @@ class TwoScaleTestbed:
             run(argv)
 
     def start(self, scale: str, argv: List[str], env: Optional[Dict[str, str]] = None,
-              log_path: Optional[str] = None) -> subprocess.Popen:
-        """Starts argv inside the scale's namespace, in its CPU group, in its own session."""
-        out = open(log_path, "ab") if log_path else subprocess.DEVNULL
+              log_path: Optional[str] = None, cpu_quota: bool = True,
+              stdout: Optional[int] = None) -> subprocess.Popen:
+        """Starts argv inside the scale's namespace, in its own session, and in the scale's CPU
+        group unless `cpu_quota` is False (the simulated world is not the robot's computer).
+        Output goes to `log_path`, or to `stdout` (e.g. subprocess.PIPE), or nowhere."""
+        out = open(log_path, "ab") if log_path else (stdout or subprocess.DEVNULL)
+        quota = self.quotas.get(scale) if cpu_quota else None
+        # The child joins the group before exec, so nothing it forks can escape the quota.
+        join = (lambda: quota.add(os.getpid())) if quota else None
         try:
             proc = subprocess.Popen(namespace_exec(self.end(scale), argv), env=env, stdout=out,
-                                    stderr=subprocess.STDOUT, start_new_session=True)
+                                    stderr=subprocess.STDOUT, start_new_session=True,
+                                    preexec_fn=join)
         finally:
             if log_path:
                 out.close()
-        if scale in self.quotas:
-            self.quotas[scale].add(proc.pid)
         self.processes.append(proc)
         return proc
 

@@ -146,9 +146,25 @@ def test_critical_nodes_never_move(engine, testbed_ch):
                 assert engine.mapping()[testbed_ch.node_names[i]] == "robot"
 
 
-def test_background_load_excludes_the_models_nodes(engine):
-    state = engine.dynamic_state(reports(1.0, laptop_load=50.0, laptop_running=("amcl",)), 1.0)
+def test_background_load_excludes_the_models_nodes(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"), DecisionParams(cpu_smoothing_s=0.0))
+    state = e.dynamic_state(reports(1.0, laptop_load=50.0, laptop_running=("amcl",)), 1.0)
     assert state.scale_load["laptop"] == pytest.approx(50.0 - 10.0 / 4.0)
+
+
+def test_a_cpu_burst_of_one_report_moves_nothing_back_but_a_lasting_load_does(engine):
+    for t in (1.0, 2.0):
+        engine.tick(reports(t), t)
+    assert remote(engine) == ["amcl", "ar_recognition"]
+    # One 0.2 s sample at 100 %: a node starting or stopping there, not a lasting load.
+    engine.tick(reports(2.2, laptop_load=100.0), 2.2)
+    engine.tick(reports(2.4), 2.4)
+    assert remote(engine) == ["amcl", "ar_recognition"]
+    t = 2.4
+    while remote(engine) and t < 20.0:
+        t += 0.2
+        engine.tick(reports(t, laptop_load=100.0), t)
+    assert remote(engine) == [] and t < 2.4 + 3 * DecisionParams().cpu_smoothing_s
 
 
 def test_objective_grows_with_better_mappings(engine, testbed_ch):

@@ -24,6 +24,7 @@ class DecisionParams:
     status_timeout_s: float = 1.5       # a remote scale silent this long counts as link down
     act_at_tolerance: float = 0.5       # move back once this share of a tolerance is spent
     startup_grace_s: float = 5.0        # a moved node's connections are not judged this long
+    cpu_smoothing_s: float = 2.0        # time constant of the background-load filter
 
 
 @dataclass(frozen=True)
@@ -50,10 +51,12 @@ def effective_rate(rate_hz: float, last_message_age_s: float) -> float:
 
 
 def pose_handoff_params(x: float, y: float, yaw: float, cov_xx: float, cov_yy: float,
-                        cov_aa: float) -> Dict[str, float]:
-    """AMCL's initial-pose parameters (ROS amcl's names) from the last estimated pose."""
+                        cov_aa: float, stamp: float = 0.0) -> Dict[str, float]:
+    """AMCL's initial-pose parameters (ROS amcl's names) from the last estimated pose, and
+    initial_pose_stamp (s, the pose's time): the new instance knows it is resuming."""
     return {"initial_pose_x": x, "initial_pose_y": y, "initial_pose_a": yaw,
-            "initial_cov_xx": cov_xx, "initial_cov_yy": cov_yy, "initial_cov_aa": cov_aa}
+            "initial_cov_xx": cov_xx, "initial_cov_yy": cov_yy, "initial_cov_aa": cov_aa,
+            "initial_pose_stamp": stamp}
 
 
 @dataclass(frozen=True)
@@ -107,6 +110,7 @@ class DecisionEngine:
         self.objective = ObjectiveIntegrator(start_time, perf(ch, self.assign))
         self.trackers = [FrequencyToleranceTracker(c.freq_min, c.tolerance)
                          for c in ch.model.connections]
+        self.load_filter: Dict[str, Tuple[float, float]] = {}   # scale -> (report time, load)
 
     # --- start-up -----------------------------------------------------------------------------
     def adopt_or_start(self, reports: Mapping[str, ScaleReport], now: float) -> TickResult:
@@ -195,7 +199,8 @@ class DecisionEngine:
                 if fresh and math.isfinite(report.bandwidth_mbps):
                     estimates.append(report.bandwidth_mbps)
             if report is not None:
-                loads[scale] = self._background_load(report)
+                loads[scale] = self._smoothed(scale, report.received_at,
+                                              self._background_load(report))
         bandwidth = min(estimates) if estimates else self.ch.model.network.max_bandwidth_mbps
         return DynamicState(bandwidth, loads, link_up)
 
@@ -204,6 +209,21 @@ class DecisionEngine:
         ours = sum(report.running.get(n, 0.0) for n in self.ch.node_names)
         load = report.cpu_percent - ours / max(report.capacity_cores, 1e-9)
         return float(np.clip(load, 0.0, 100.0))
+
+    def _smoothed(self, scale: str, at: float, load: float) -> float:
+        """Exponential smoothing of a scale's background load over report time: a node that
+        starts or stops spends a burst of CPU (imports, shutdown) that is no lasting load, and
+        acting on one 0.2 s sample would move nodes out and back for nothing."""
+        last = self.load_filter.get(scale)
+        if last is not None and at <= last[0]:
+            return last[1]                      # the same report again
+        if last is None or self.params.cpu_smoothing_s <= 0:
+            value = load
+        else:
+            weight = 1.0 - math.exp(-(at - last[0]) / self.params.cpu_smoothing_s)
+            value = last[1] + weight * (load - last[1])
+        self.load_filter[scale] = (at, value)
+        return value
 
     def _update_trackers(self, reports, now) -> set:
         """Feed each connection's rate as received where its subscriber runs; return the

@@ -60,7 +60,8 @@ def read_params(get=rospy.get_param) -> NodeParams:
                             lease_s=number("lease_s", 3.0, 0.1),
                             status_timeout_s=number("status_timeout_s", 1.5, 0.1),
                             act_at_tolerance=number("act_at_tolerance", 0.5),
-                            startup_grace_s=number("startup_grace_s", 5.0))
+                            startup_grace_s=number("startup_grace_s", 5.0),
+                            cpu_smoothing_s=number("cpu_smoothing_s", 2.0))
     if engine.act_at_tolerance > 1.0:
         raise ParamError(f"~act_at_tolerance: expected 0..1, got {engine.act_at_tolerance:g}")
     return NodeParams(model, str(get("~allocator", "paper")), number("period_s", 1.0, 0.05),

@@ -73,7 +73,8 @@ def handoff_params_from_pose(msg) -> Dict[str, float]:
     p, q = msg.pose.pose.position, msg.pose.pose.orientation
     yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
     cov = msg.pose.covariance
-    return pose_handoff_params(p.x, p.y, yaw, cov[0], cov[7], cov[35])
+    return pose_handoff_params(p.x, p.y, yaw, cov[0], cov[7], cov[35],
+                               msg.header.stamp.to_sec())
 
 
 def mapping_msg(mapping: Mapping[str, str], perf: float, objective: float, allocator: str,

@@ -103,9 +103,12 @@ class TestbedMonitor:
             self.rec.receipts[topic].append(now)
         if topic == self.pose_topic:
             # One rospy subscription per topic and process: the pose comes out of the raw one.
-            p = PoseWithCovarianceStamped().deserialize(msg._buff).pose.pose.position
+            # At its stamp, not its arrival: after a partition heals, TCP may still deliver a
+            # pose the old instance sent before the link went down.
+            pose = PoseWithCovarianceStamped().deserialize(msg._buff)
+            p, stamp = pose.pose.pose.position, pose.header.stamp.to_sec()
             with self.lock:
-                self.rec.estimate.append((now, p.x, p.y))
+                self.rec.estimate.append((stamp - self.rec.started_wall, p.x, p.y))
 
     def _on_mapping(self, msg):
         mapping = {a.node: a.scale for a in msg.assignments}

@@ -72,14 +72,15 @@ def longest_gap(times: Sequence[float], start: float, end: float) -> float:
     return max(b - a for a, b in zip(points, points[1:])) if end > start else 0.0
 
 
-def gap_around(times: Sequence[float], moment: float) -> float:
-    """The silence that covers `moment`: from the last message at or before it to the first
-    after it (inf if the topic never spoke again)."""
+def gap_during(times: Sequence[float], start: float, end: float) -> float:
+    """The longest silence that overlaps [start, end] (a move's window), from the last message
+    before it to the first after it (inf if the topic never spoke again)."""
     ordered = sorted(times)
-    i = bisect.bisect_right(ordered, moment)
-    before = ordered[i - 1] if i > 0 else -math.inf
-    after = ordered[i] if i < len(ordered) else math.inf
-    return after - before
+    before = [t for t in ordered if t <= start][-1:] or [-math.inf]
+    inside = [t for t in ordered if start < t <= end]
+    after = [t for t in ordered if t > end][:1] or [math.inf]
+    points = before + inside + after
+    return max(b - a for a, b in zip(points, points[1:]))
 
 
 def first_after(times: Sequence[float], moment: float) -> float:
@@ -130,10 +131,15 @@ def mapping_at(rec: TestbedRecord, t: float) -> Dict[str, str]:
     return current
 
 
+# After the new instance registered, its first output may take this long (a filter's first
+# update); the window of a move reaches this far past the registration.
+MOVE_SETTLE_S = 3.0
+
+
 @dataclass(frozen=True)
 class MoveFigures:
     event: EventRecord
-    output_gap_s: float        # the silence on the node's output topic covering the move
+    output_gap_s: float        # the longest silence on the node's output topic during the move
     first_output_s: float      # decision -> first message on the output topic afterwards
 
 
@@ -145,7 +151,8 @@ def move_figures(rec: TestbedRecord, outputs: Dict[str, str]) -> List[MoveFigure
         if e.kind not in ("migrate", "migrate_back") or topic is None:
             continue
         times = rec.receipts.get(topic, [])
-        out.append(MoveFigures(e, gap_around(times, e.decided_t),
+        settled = e.decided_t + (e.duration_s if math.isfinite(e.duration_s) else 0.0)
+        out.append(MoveFigures(e, gap_during(times, e.decided_t, settled + MOVE_SETTLE_S),
                                first_after(times, e.decided_t)))
     return out
 

@@ -1,0 +1,121 @@
+"""System tests of live migration on the two-scale test bed (root: network namespaces, tc,
+cgroups): the navigation demo with AnyScale deciding, the link following a scripted schedule.
+
+One run of scripts/run_testbed.py serves every test here; each test reads what its monitor
+recorded. The schedule, on the small loop world:
+    0 s   27 Mbit/s   AMCL, then AR move to the laptop            (1)
+    35 s   3 Mbit/s   below AR's 6 Mbit/s: AR comes back, AMCL stays (2)
+    50 s   link down  AMCL comes back, /amcl_pose silent < 2 s     (3)
+    56 s   27 Mbit/s  they move out again, AMCL only after T        (4)
+and throughout: never two live instances while the link is up (5), critical nodes stay (6),
+AMCL stays localised (7)."""
+import glob
+import os
+import subprocess
+import sys
+
+import pytest
+
+from anyscale_core.testbed_record import (TestbedRecord, duplicate_instances, first_after,
+                                          link_transitions, longest_gap, mapping_at,
+                                          pose_errors)
+from anyscale_core.two_scale_testbed import missing_capabilities
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+MISSING = missing_capabilities()
+pytestmark = pytest.mark.skipif(bool(MISSING), reason="the two-scale test bed needs " +
+                                "; ".join(MISSING))
+
+SCHEDULE = "[[0, 27], [35, 3], [50, 0], [56, 27]]"
+WEAK_AT, DOWN_AT, UP_AT = 35.0, 50.0, 56.0
+HYSTERESIS_S = 10.0
+DURATION_S = 85.0
+MIGRATABLE = ("amcl", "ar_recognition")
+CRITICAL = ("odometry", "ekf", "navigation")
+AMCL_POSE_TOLERANCE_S = 2.0      # Table I
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("testbed")
+    done = subprocess.run(
+        [sys.executable, os.path.join(ROOT, "scripts", "run_testbed.py"), "--world",
+         "small_loop", "--link", "schedule", "--schedule", SCHEDULE, "--duration",
+         str(DURATION_S), "--hysteresis", str(HYSTERESIS_S), "--out", str(out)],
+        capture_output=True, text=True, timeout=DURATION_S + 120)
+    records = glob.glob(str(out / "*" / "record.json"))
+    assert done.returncode == 0 and records, done.stdout[-3000:] + done.stderr[-3000:]
+    print(done.stdout)      # the run's own account, shown with -s or on failure
+    return TestbedRecord.load(records[0])
+
+
+def moves(rec, kind, node=None):
+    return [e for e in rec.events
+            if e.kind == kind and e.success and (node is None or e.node == node)]
+
+
+def test_nothing_is_left_behind(run):
+    namespaces = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout
+    assert "anyscale_robot" not in namespaces and "anyscale_laptop" not in namespaces
+    assert not os.path.exists("/sys/fs/cgroup/cpu/anyscale_robot")
+    left = subprocess.run(["pgrep", "-f", "__name:=amcl"], capture_output=True, text=True)
+    assert left.stdout == ""
+
+
+def test_1_good_link_moves_amcl_then_ar_to_the_laptop(run):
+    out = [e for e in moves(run, "migrate") if e.decided_t < WEAK_AT]
+    assert [e.node for e in out][:2] == ["amcl", "ar_recognition"], out
+    assert mapping_at(run, WEAK_AT - 1.0) == {**mapping_at(run, WEAK_AT - 1.0),
+                                              "amcl": "laptop", "ar_recognition": "laptop"}
+
+
+def test_2_bandwidth_below_ars_need_brings_ar_back_and_amcl_stays(run):
+    back = [e for e in moves(run, "migrate_back") if WEAK_AT <= e.decided_t < DOWN_AT]
+    assert [e.node for e in back] == ["ar_recognition"], back
+    assert "bandwidth" in back[0].reason
+    assert mapping_at(run, DOWN_AT - 0.5)["amcl"] == "laptop"
+
+
+def test_3_link_down_brings_both_back_and_amcl_pose_stays_within_tolerance(run):
+    back = [e for e in moves(run, "migrate_back", "amcl") if DOWN_AT <= e.decided_t < UP_AT]
+    assert back and "down" in back[0].reason
+    assert set(mapping_at(run, UP_AT - 0.5)[n] for n in MIGRATABLE) == {"robot"}
+    poses = run.receipts["/amcl_pose"]
+    gap = longest_gap(poses, poses[0], run.finished_t)
+    assert gap <= AMCL_POSE_TOLERANCE_S, f"/amcl_pose silent for {gap:.2f} s on the robot"
+    assert first_after(poses, DOWN_AT) < AMCL_POSE_TOLERANCE_S
+
+
+def test_4_after_the_link_returns_they_move_out_again_only_after_t(run):
+    returned = {e.node: e.decided_t for e in moves(run, "migrate_back")}
+    again = [e for e in moves(run, "migrate") if e.decided_t >= UP_AT]
+    assert {e.node for e in again} == set(MIGRATABLE), again
+    for e in again:
+        assert e.decided_t >= returned[e.node] + HYSTERESIS_S - 0.01, e
+    assert [t for t, up in link_transitions(run.bandwidth)] != []
+
+
+def test_5_never_two_instances_where_both_could_publish(run):
+    assert run.processes, "no process samples recorded"
+    assert duplicate_instances(run.processes, MIGRATABLE) == []
+    # The master's view agrees: one registered publisher per output topic at every sample.
+    for t, publishers in run.master_publishers:
+        for topic in ("/amcl_pose", "/ar_markers"):
+            assert len(publishers.get(topic, [])) <= 1, (t, topic, publishers)
+    # And after the partition healed, one instance of each, in one namespace.
+    healed = [s for s in run.processes if s.t > UP_AT + 5.0]
+    assert healed and all(len(s.instances[n]) == 1 for s in healed for n in MIGRATABLE)
+
+
+def test_6_critical_nodes_never_move(run):
+    assert not [e for e in run.events if e.node in CRITICAL and e.kind != "start"]
+    for _, mapping, _, _ in run.mappings:
+        assert all(mapping[n] == "robot" for n in CRITICAL)
+
+
+def test_7_navigation_stays_localised_across_every_move(run):
+    errors = pose_errors(run.truth, run.estimate)
+    assert errors.size > 100
+    assert errors.max() < 0.5, f"AMCL off by {errors.max():.2f} m"
+    statuses = [s for _, s in run.navigation_status]
+    assert statuses and not any(s.startswith("stopped") for s in statuses), statuses[-3:]

@@ -49,13 +49,13 @@ def world_start(world: str):
 
 
 def calibrated_cores(path: str):
-    """(robot, laptop) CPU quota in cores from the calibration file's `testbed` section."""
+    """(robot, laptop) CPU quota in cores from the calibration file."""
     try:
         with open(path) as f:
-            section = (yaml.safe_load(f) or {}).get("testbed", {})
-        return float(section["robot_cpu_cores"]), float(section["laptop_cpu_cores"])
+            calibration = yaml.safe_load(f) or {}
+        return float(calibration["robot_cpu_cores"]), float(calibration["laptop_cpu_cores"])
     except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as e:
-        sys.exit(f"run_testbed: {path}: testbed.robot_cpu_cores / laptop_cpu_cores: {e}")
+        sys.exit(f"run_testbed: {path}: robot_cpu_cores / laptop_cpu_cores: {e}")
 
 
 def parse_args(argv):

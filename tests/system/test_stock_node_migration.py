@@ -72,7 +72,8 @@ def test_the_relays_output_never_goes_silent_longer_than_its_tolerance(run):
 
 def test_one_relay_instance_while_the_link_is_up_also_after_the_partition_heals(run):
     assert duplicate_instances(run.processes, ["relay"]) == []
-    healed = [s for s in run.processes if s.t > UP_AT + 3.0]
-    assert healed and all(len(s.instances["relay"]) == 1 for s in healed)
+    healed = [s for s in run.processes if s.t > UP_AT]
+    assert healed and all(len(s.instances["relay"]) <= 1 for s in healed)
+    assert len(healed[-1].instances["relay"]) == 1
     for t, publishers in run.master_publishers:
         assert len(publishers.get("/chatter_relay", [])) <= 1, (t, publishers)

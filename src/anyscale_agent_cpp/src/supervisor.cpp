@@ -231,7 +231,14 @@ bool Supervisor::stop(const std::string& name, ProcState final_state)
   r.final_state = final_state;
   r.info.state = ProcState::Stopping;
   if (r.group.stage == 0)
+  {
+    // A lease runs out only on a scale cut off from the decision node. A clean shutdown would
+    // try to unregister from a master it cannot reach and hang there, while the name already
+    // belongs to the new instance on the other side: straight to SIGKILL.
+    if (final_state == ProcState::LeaseExpired)
+      r.group.stage = 2;
     escalate(r.group, Clock::now());
+  }
   return true;
 }
 

@@ -118,7 +118,7 @@ TEST(Supervisor, ChildIgnoringSigintAndSigtermIsKilledAfterBothTimeouts)
   ASSERT_GT(pid, 0) << err;
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
   const auto t0 = Clock::now();
-  s.stop("deaf", ProcState::LeaseExpired);
+  s.stop("deaf");
   EXPECT_EQ(s.info("deaf")->state, ProcState::Stopping);
   ASSERT_TRUE(s.waitGone("deaf", 10.0));
   const double took = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -126,8 +126,25 @@ TEST(Supervisor, ChildIgnoringSigintAndSigtermIsKilledAfterBothTimeouts)
   EXPECT_LT(took, 8.0);
   const auto info = s.info("deaf").value();
   EXPECT_EQ(info.exit_signal, SIGKILL);
-  EXPECT_EQ(info.state, ProcState::LeaseExpired);
+  EXPECT_EQ(info.state, ProcState::Exited);
   // The sleep children ignored the signals too (SIG_IGN is inherited); the group must be empty.
+  EXPECT_TRUE(waitUntil([&] { return groupGone(pid); }, 5.0, s));
+}
+
+TEST(Supervisor, ExpiredLeaseKillsAtOnceWithoutTheGracefulStages)
+{
+  Supervisor s;  // roslaunch's 15 s + 2 s grace: a lease end must not wait for them
+  std::string err;
+  const int pid = s.start("cut_off", sh("trap '' INT TERM; while :; do sleep 0.05; done"), tempLog("cut"), &err);
+  ASSERT_GT(pid, 0) << err;
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  const auto t0 = Clock::now();
+  s.stop("cut_off", ProcState::LeaseExpired);
+  ASSERT_TRUE(s.waitGone("cut_off", 10.0));
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - t0).count(), 2.0);
+  const auto info = s.info("cut_off").value();
+  EXPECT_EQ(info.exit_signal, SIGKILL);
+  EXPECT_EQ(info.state, ProcState::LeaseExpired);
   EXPECT_TRUE(waitUntil([&] { return groupGone(pid); }, 5.0, s));
 }
 

@@ -72,7 +72,8 @@ public:
             std::string* error);
 
   // Begins the stop sequence; returns at once. `final_state` is what the node shows once gone
-  // (Exited, or LeaseExpired). False if `name` is not alive.
+  // (Exited, or LeaseExpired: then SIGKILL at once, no SIGINT/SIGTERM grace). False if `name`
+  // is not alive.
   bool stop(const std::string& name, ProcState final_state = ProcState::Exited);
 
   // Waits until `name` is no longer alive, polling itself; false on timeout.

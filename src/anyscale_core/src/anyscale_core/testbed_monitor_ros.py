@@ -34,14 +34,21 @@ def say(line: str):
     print(f"[testbed] {line}", flush=True)
 
 
-def node_processes(names) -> Dict[str, List[str]]:
-    """node name -> network namespace (the /proc/PID/ns/net link) of each live process."""
+def node_processes(names, master_uri: str) -> Dict[str, List[str]]:
+    """node name -> network namespace (the /proc/PID/ns/net link) of each live process of
+    this ROS system (its ROS_MASTER_URI is ours: other systems on the machine do not count)."""
     wanted = {f"__name:={n}".encode(): n for n in names}
+    ours = f"ROS_MASTER_URI={master_uri}".encode()
     found: Dict[str, List[str]] = {n: [] for n in names}
     for pid in filter(str.isdigit, os.listdir("/proc")):
         try:
             with open(f"/proc/{pid}/cmdline", "rb") as f:
                 args = f.read().split(b"\0")
+            if not any(a in wanted for a in args):
+                continue
+            with open(f"/proc/{pid}/environ", "rb") as f:
+                if ours not in f.read().split(b"\0"):
+                    continue
             with open(f"/proc/{pid}/stat", "rb") as f:
                 if f.read().rsplit(b")", 1)[1].split()[0] == b"Z":
                     continue            # a zombie publishes nothing
@@ -142,10 +149,10 @@ class TestbedMonitor:
                                                    else "lost (no coverage)"))
 
     def _on_truth(self, msg):
-        p = msg.pose.pose.position
+        p, t = msg.pose.pose.position, msg.header.stamp.to_sec() - self.rec.started_wall
         with self.lock:
-            if not self.rec.truth or self.now() - self.rec.truth[-1][0] >= 0.1:
-                self.rec.truth.append((self.now(), p.x, p.y))
+            if not self.rec.truth or t - self.rec.truth[-1][0] >= 0.1:
+                self.rec.truth.append((t, p.x, p.y))
 
     def _on_status(self, msg):
         with self.lock:
@@ -156,7 +163,7 @@ class TestbedMonitor:
 
     # --- sampling -------------------------------------------------------------------------------
     def _sample(self):
-        instances = node_processes(self.node_names)
+        instances = node_processes(self.node_names, rosgraph.get_master_uri())
         try:
             publishers = {t: sorted(nodes) for t, nodes in self.master.getSystemState()[0]
                           if t in self.rec.receipts}

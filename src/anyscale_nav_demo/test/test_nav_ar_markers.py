@@ -48,3 +48,30 @@ def test_rotation_to_quaternion():
     c, s = math.cos(0.3), math.sin(0.3)
     q = rotation_to_quaternion(np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]))
     assert q == pytest.approx((0, 0, math.sin(0.15), math.cos(0.15)))
+
+
+def test_detector_params_default_keeps_todays_detector():
+    d = MarkerDetector(CAM.K, CAM.D, 0.4, {})
+    assert d.params.errorCorrectionRate == pytest.approx(0.3)
+    assert d.params.adaptiveThreshWinSizeStep == DET.params.adaptiveThreshWinSizeStep
+
+
+def test_detector_params_finer_threshold_sweep_still_detects():
+    # config/testbed_calibration.yaml's sweep (plus a float field given as an int)
+    d = MarkerDetector(CAM.K, CAM.D, 0.4, {"adaptiveThreshWinSizeMax": 53,
+                                           "adaptiveThreshWinSizeStep": 2,
+                                           "adaptiveThreshConstant": 4,
+                                           "errorCorrectionRate": 0.2})
+    assert d.params.adaptiveThreshWinSizeMax == 53
+    assert d.params.adaptiveThreshWinSizeStep == 2
+    assert d.params.adaptiveThreshConstant == pytest.approx(4.0)
+    assert d.params.errorCorrectionRate == pytest.approx(0.2)
+    img, _ = render(CAM, background(CAM), (1.0, 0.0, 0.4, 0.0), [marker()], TEX)
+    assert [f[0] for f in d.detect(img)] == [2]
+
+
+@pytest.mark.parametrize("bad", [{"noSuchField": 1}, {"adaptiveThreshWinSizeStep": 2.5},
+                                 {"adaptiveThreshWinSizeStep": "2"}, {"errorCorrectionRate": "x"}])
+def test_detector_params_rejects_unknown_or_mistyped(bad):
+    with pytest.raises(ValueError):
+        MarkerDetector(CAM.K, CAM.D, 0.4, bad)

@@ -81,12 +81,33 @@ def render(camera, base_image, cam_pose, markers, textures, max_range=6.0):
 class MarkerDetector:
     """cv2.aruco detection plus each marker's pose in the camera's optical frame."""
 
-    def __init__(self, camera_matrix, dist_coeffs, marker_size):
+    def __init__(self, camera_matrix, dist_coeffs, marker_size, detector_params=None):
+        """detector_params: {name: value} of cv2.aruco.DetectorParameters fields set after
+        this class's defaults (e.g. adaptiveThreshWinSizeMax/Step, the threshold sweep that
+        dominates the cost per frame). ValueError for a name DetectorParameters lacks or a
+        value of the wrong type."""
         self.dictionary = cv2.aruco.Dictionary_get(DICTIONARY)
         self.params = cv2.aruco.DetectorParameters_create()
         # The default (0.6) let a half-seen marker at a grazing angle decode as a wrong id in
         # a full office loop; the 4x4_50 dictionary leaves room for a stricter rate.
         self.params.errorCorrectionRate = 0.3
+        for name, value in sorted((detector_params or {}).items()):
+            if name.startswith("_") or not hasattr(self.params, name):
+                raise ValueError("cv2.aruco.DetectorParameters has no field %r" % (name,))
+            old = getattr(self.params, name)
+            if isinstance(old, bool) or isinstance(value, bool):
+                ok = isinstance(old, bool) and isinstance(value, bool)
+            elif isinstance(old, int):
+                ok = isinstance(value, int)
+            else:
+                ok = isinstance(value, (int, float))
+            if not ok:
+                raise ValueError("DetectorParameters.%s must be %s like %r, got %r"
+                                 % (name, type(old).__name__, old, value))
+            try:
+                setattr(self.params, name, type(old)(value))
+            except (TypeError, cv2.error) as e:
+                raise ValueError("DetectorParameters.%s = %r: %s" % (name, value, e))
         self.K = np.asarray(camera_matrix, dtype=float).reshape(3, 3)
         self.D = np.asarray(dist_coeffs, dtype=float)
         self.size = marker_size

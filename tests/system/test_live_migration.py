@@ -97,9 +97,10 @@ def test_3_link_down_brings_both_back(run):
     assert set(mapping_at(run, UP_AT - 0.5)[n] for n in MIGRATABLE) == {"robot"}
 
 
-@pytest.mark.xfail(reason="measured 2.2-2.4 s on this 2-core machine, over the 2 s tolerance: "
-                          "link-loss detection 0.6-0.9 s + restarting the rospy AMCL under the "
-                          "robot's CPU quota 1.2 s + its first update 0.4 s (README)",
+@pytest.mark.xfail(reason="a known miss: the link is lost without warning and the robot must "
+                          "restart AMCL; measured 2.2-2.4 s uncalibrated and 8.7 s with the "
+                          "calibrated 5000-particle AMCL under the robot's 0.37-core quota "
+                          "(detection 0.7 s, start to registered 5.4 s); see the README",
                    strict=False)
 def test_3_amcl_pose_on_the_robot_never_silent_longer_than_its_tolerance(run):
     poses = run.receipts["/amcl_pose"]

@@ -3,13 +3,12 @@ robot's master reached over the veth (TwoScaleTestbed), or, where root, namespac
 are missing, both on this machine's loopback, unshaped (LoopbackBed). One interface for both,
 so the demo script and the system tests start the same launch files either way."""
 import os
-import signal
 import subprocess
 import threading
-import time
 from typing import Callable, Dict, IO, List, Optional
 
-from .two_scale_testbed import ScaleEnd, TwoScaleLayout, TwoScaleTestbed
+from .two_scale_testbed import (ScaleEnd, TwoScaleLayout, TwoScaleTestbed,
+                                stop_process_groups)
 
 MASTER_PORT = 11311
 
@@ -71,26 +70,6 @@ class NamespaceBed(TwoScaleTestbed):
 
     def address(self, scale: str) -> str:
         return self.end(scale).address
-
-
-def stop_process_groups(processes: List[subprocess.Popen], grace_s: float):
-    """SIGINT to every process group (roslaunch then stops its nodes), SIGKILL after grace_s."""
-    for proc in processes:
-        if proc.poll() is None:
-            try:
-                os.killpg(proc.pid, signal.SIGINT)
-            except ProcessLookupError:
-                pass
-    deadline = time.monotonic() + grace_s
-    for proc in processes:
-        try:
-            proc.wait(timeout=max(0.0, deadline - time.monotonic()))
-        except subprocess.TimeoutExpired:
-            try:
-                os.killpg(proc.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            proc.wait()
 
 
 def layout_with_cpu(robot_cores: float, laptop_cores: float,

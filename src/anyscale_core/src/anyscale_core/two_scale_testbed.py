@@ -230,17 +230,22 @@ class TwoScaleTestbed:
             quota.remove()
 
     def _stop_processes(self, grace_s: float):
-        for proc in self.processes:
-            if proc.poll() is None:
-                _signal_group(proc.pid, signal.SIGINT)
-        deadline = time.monotonic() + grace_s
-        for proc in self.processes:
-            try:
-                proc.wait(timeout=max(0.0, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                _signal_group(proc.pid, signal.SIGKILL)
-                proc.wait()
+        stop_process_groups(self.processes, grace_s)
         self.processes.clear()
+
+
+def stop_process_groups(processes: List[subprocess.Popen], grace_s: float):
+    """SIGINT to every process group (roslaunch then stops its nodes), SIGKILL after grace_s."""
+    for proc in processes:
+        if proc.poll() is None:
+            _signal_group(proc.pid, signal.SIGINT)
+    deadline = time.monotonic() + grace_s
+    for proc in processes:
+        try:
+            proc.wait(timeout=max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            _signal_group(proc.pid, signal.SIGKILL)
+            proc.wait()
 
 
 def _signal_group(pid: int, sig: int):

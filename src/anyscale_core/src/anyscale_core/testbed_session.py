@@ -7,7 +7,7 @@ import subprocess
 import threading
 from typing import Callable, Dict, IO, List, Optional
 
-from .two_scale_testbed import (ScaleEnd, TwoScaleLayout, TwoScaleTestbed,
+from .two_scale_testbed import (ScaleEnd, TwoScaleLayout, TwoScaleTestbed, start_session,
                                 stop_process_groups)
 
 MASTER_PORT = 11311
@@ -50,13 +50,7 @@ class LoopbackBed:
         return "localhost"
 
     def start(self, scale, argv, env=None, log_path=None, cpu_quota=True, stdout=None):
-        out = open(log_path, "ab") if log_path else (stdout or subprocess.DEVNULL)
-        try:
-            proc = subprocess.Popen(list(argv), env=env, stdout=out, stderr=subprocess.STDOUT,
-                                    start_new_session=True)
-        finally:
-            if log_path:
-                out.close()
+        proc = start_session(argv, env, log_path, stdout)
         self.processes.append(proc)
         return proc
 

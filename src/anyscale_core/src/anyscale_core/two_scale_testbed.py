@@ -204,17 +204,10 @@ class TwoScaleTestbed:
         """Starts argv inside the scale's namespace, in its own session, and in the scale's CPU
         group unless `cpu_quota` is False (the simulated world is not the robot's computer).
         Output goes to `log_path`, or to `stdout` (e.g. subprocess.PIPE), or nowhere."""
-        out = open(log_path, "ab") if log_path else (stdout or subprocess.DEVNULL)
         quota = self.quotas.get(scale) if cpu_quota else None
         # The child joins the group before exec, so nothing it forks can escape the quota.
         join = (lambda: quota.add(os.getpid())) if quota else None
-        try:
-            proc = subprocess.Popen(namespace_exec(self.end(scale), argv), env=env, stdout=out,
-                                    stderr=subprocess.STDOUT, start_new_session=True,
-                                    preexec_fn=join)
-        finally:
-            if log_path:
-                out.close()
+        proc = start_session(namespace_exec(self.end(scale), argv), env, log_path, stdout, join)
         self.processes.append(proc)
         return proc
 
@@ -232,6 +225,19 @@ class TwoScaleTestbed:
     def _stop_processes(self, grace_s: float):
         stop_process_groups(self.processes, grace_s)
         self.processes.clear()
+
+
+def start_session(argv: List[str], env: Optional[Dict[str, str]], log_path: Optional[str],
+                  stdout: Optional[int] = None, preexec_fn=None) -> subprocess.Popen:
+    """argv in a session of its own (signalled as a group), output to `log_path`, to `stdout`
+    (e.g. subprocess.PIPE), or nowhere."""
+    out = open(log_path, "ab") if log_path else (stdout or subprocess.DEVNULL)
+    try:
+        return subprocess.Popen(list(argv), env=env, stdout=out, stderr=subprocess.STDOUT,
+                                start_new_session=True, preexec_fn=preexec_fn)
+    finally:
+        if log_path:
+            out.close()
 
 
 def stop_process_groups(processes: List[subprocess.Popen], grace_s: float):

@@ -75,6 +75,8 @@ def parse_args(argv):
     p.add_argument("--allocator", default="paper", help="paper (default), paper_local, optimal")
     p.add_argument("--hysteresis", type=float, default=10.0, help="the paper's T in s (10)")
     p.add_argument("--model", default=None, help="system model (default: the nav demo's)")
+    p.add_argument("--cold-start", action="store_true",
+                   help="agents keep no warm standbys: every start imports anew (to compare)")
     p.add_argument("--rviz", action="store_true", help="also start rviz (needs a display)")
     p.add_argument("--loopback", action="store_true",
                    help="both scales on loopback, unshaped, even where namespaces work")
@@ -134,9 +136,11 @@ def main(argv=None) -> int:
             session.roslaunch("robot", "robot", [
                 "anyscale_nav_demo", "anyscale_robot.launch", f"world:={args.world}",
                 f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}",
-                f"allocator:={args.allocator}", f"hysteresis_s:={args.hysteresis}"])
-            session.roslaunch("laptop", "laptop", ["anyscale_nav_demo", "laptop.launch",
-                                                   f"model:={model}"])
+                f"allocator:={args.allocator}", f"hysteresis_s:={args.hysteresis}",
+                f"warm_start:={str(not args.cold_start).lower()}"])
+            session.roslaunch("laptop", "laptop", [
+                "anyscale_nav_demo", "laptop.launch", f"model:={model}",
+                f"warm_start:={str(not args.cold_start).lower()}"])
             code = world.wait()
             print(PREFIX + f"run ended (world launch exit {code}); stopping both scales")
             return 0 if code == 0 else 1

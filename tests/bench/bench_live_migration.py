@@ -5,9 +5,11 @@ reaction time from link down to the node publishing on the robot again, and the 
 node's CPU. Goals (issue 5): planned-move gap <= 1.0 s, reaction <= 1.0 s, decision node
 <= 3 % of a core.
 
-The navigation demo (AMCL, AR recognition) and a stock topic_tools relay run in two sessions,
-each with a link schedule that repeats: good link (the nodes move out after T), link down
-(they come back). Run with the workspace sourced:
+The navigation demo (AMCL, AR recognition) runs twice, with the agents' warm standbys of the
+rospy nodes and without them (every start imports anew), and a stock topic_tools relay
+(roscpp: no standby) once, each with a link schedule that repeats: good link (the nodes move
+out after T), link down (they come back). Warm and cold runs share the machine's load of the
+moment, so their ratio is the figure to read. Run with the workspace sourced:
     sudo -E /usr/bin/python3 tests/bench/bench_live_migration.py [--cycles 3]
 """
 import argparse
@@ -76,14 +78,15 @@ class ProcessCpu(threading.Thread):
         return 100.0 * (self.last[1] - self.first[1]) / (self.last[2] - self.first[2])
 
 
-def run_nav(cycles, up_s, down_s, out):
+def run_nav(cycles, up_s, down_s, out, warm):
     steps, duration = cycle_schedule(cycles, up_s, down_s)
     cpu = ProcessCpu("anyscale_decision")
     cpu.start()
     done = subprocess.run(
         [sys.executable, os.path.join(ROOT, "scripts", "run_testbed.py"), "--world",
          "small_loop", "--link", "schedule", "--schedule", str(steps), "--duration",
-         str(duration), "--hysteresis", "5", "--out", out], capture_output=True, text=True)
+         str(duration), "--hysteresis", "5", "--out", out] + ([] if warm else ["--cold-start"]),
+        capture_output=True, text=True)
     cpu.stop.set()
     records = glob.glob(os.path.join(out, "*", "record.json"))
     if done.returncode != 0 or not records:
@@ -132,6 +135,12 @@ def describe(values):
             f"(n={len(values)})")
 
 
+def ratio(cold, warm):
+    if not cold or not warm:
+        return "-"
+    return f"{statistics.median(cold) / statistics.median(warm):.1f}x"
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--cycles", type=int, default=3, help="good-link/link-down cycles (3)")
@@ -142,18 +151,30 @@ def main(argv=None):
     if missing:
         sys.exit("bench: the test bed needs " + "; ".join(missing))
     with tempfile.TemporaryDirectory(prefix="bench_live_") as out:
-        print(f"[1/2] navigation demo, {args.cycles} cycles ...", flush=True)
-        nav, decision_cpu = run_nav(args.cycles, args.up, args.down, os.path.join(out, "nav"))
-        print(f"[2/2] stock topic_tools relay, {args.cycles} cycles ...", flush=True)
+        print(f"[1/3] navigation demo with warm standbys, {args.cycles} cycles ...", flush=True)
+        warm, warm_cpu = run_nav(args.cycles, args.up, args.down, os.path.join(out, "warm"), True)
+        print(f"[2/3] navigation demo, cold starts, {args.cycles} cycles ...", flush=True)
+        cold, cold_cpu = run_nav(args.cycles, args.up, args.down, os.path.join(out, "cold"), False)
+        print(f"[3/3] stock topic_tools relay, {args.cycles} cycles ...", flush=True)
         os.makedirs(os.path.join(out, "relay"))
         relay = run_relay(args.cycles, args.up, args.down, os.path.join(out, "relay"))
-    figures = {**node_figures(nav, {"amcl": "/amcl_pose", "ar_recognition": "/ar_markers"}),
-               **node_figures(relay, {"relay": "/chatter_relay"})}
-    print("\nnode            planned move: output gap          link loss: output gap"
+    nav_outputs = {"amcl": "/amcl_pose", "ar_recognition": "/ar_markers"}
+    rows = [(f"{n} (warm)", f) for n, f in node_figures(warm, nav_outputs).items()]
+    rows += [(f"{n} (cold)", f) for n, f in node_figures(cold, nav_outputs).items()]
+    rows += list(node_figures(relay, {"relay": "/chatter_relay"}).items())
+    print("\nnode                   planned move: output gap          link loss: output gap"
           "             reaction (link down -> output on the robot)")
-    for node, (planned, lost, reaction) in figures.items():
-        print(f"{node:<15} {describe(planned):<34} {describe(lost):<34} {describe(reaction)}")
-    print(f"\ndecision node CPU: {decision_cpu:.2f} % of one core (goal <= 3 %)")
+    for node, (planned, lost, reaction) in rows:
+        print(f"{node:<22} {describe(planned):<34} {describe(lost):<34} {describe(reaction)}")
+    figures = {name: f for name, f in rows}
+    print("\ncold / warm (medians, same machine, one after the other):")
+    for node in nav_outputs:
+        w, c = figures.get(f"{node} (warm)"), figures.get(f"{node} (cold)")
+        if w and c:
+            print(f"  {node:<16} planned gap {ratio(c[0], w[0])}, link-loss gap "
+                  f"{ratio(c[1], w[1])}, reaction {ratio(c[2], w[2])}")
+    print(f"\ndecision node CPU: {warm_cpu:.2f} % (warm run), {cold_cpu:.2f} % (cold run) of "
+          "one core (goal <= 3 %)")
     print("goals: planned-move gap <= 1.0 s, reaction <= 1.0 s")
 
 

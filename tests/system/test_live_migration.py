@@ -93,14 +93,14 @@ def test_2_bandwidth_below_ars_need_brings_ar_back_and_amcl_stays(run):
 def test_3_link_down_brings_both_back(run):
     back = [e for e in moves(run, "migrate_back", "amcl") if DOWN_AT <= e.decided_t < UP_AT]
     assert back and "down" in back[0].reason
-    assert back[0].decided_t - DOWN_AT < 1.5      # status silence 0.75 s + a period
+    assert back[0].decided_t - DOWN_AT < 1.75     # status silence 1.0 s + a period
     assert set(mapping_at(run, UP_AT - 0.5)[n] for n in MIGRATABLE) == {"robot"}
 
 
 @pytest.mark.xfail(reason="a known miss: the link is lost without warning and the robot must "
-                          "restart AMCL; measured 2.2-2.4 s uncalibrated and 8.7 s with the "
-                          "calibrated 5000-particle AMCL under the robot's 0.37-core quota "
-                          "(detection 0.7 s, start to registered 5.4 s); see the README",
+                          "restart AMCL under its 0.37-core quota; with the warm standby "
+                          "measured 3.1-3.3 s (detection 1.0 s, to registered 0.6 s, first "
+                          "5000-particle update 1.5 s), 8.7 s cold; see the README",
                    strict=False)
 def test_3_amcl_pose_on_the_robot_never_silent_longer_than_its_tolerance(run):
     poses = run.receipts["/amcl_pose"]

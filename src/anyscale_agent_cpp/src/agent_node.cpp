@@ -63,6 +63,7 @@ uint8_t toMsgState(ProcState s)
     case ProcState::Exited: return anyscale_msgs::NodeProcess::EXITED;
     case ProcState::Replaced: return anyscale_msgs::NodeProcess::REPLACED;
     case ProcState::LeaseExpired: return anyscale_msgs::NodeProcess::LEASE_EXPIRED;
+    case ProcState::Standby: return anyscale_msgs::NodeProcess::STANDBY;
   }
   return anyscale_msgs::NodeProcess::EXITED;
 }
@@ -90,6 +91,8 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
     throw std::runtime_error("cannot create ~log_dir '" + log_dir_ + "': " + ec.message());
   clear_params_ = param(pnh_, "clear_params", true);
   sample_period_s_ = 1.0 / positive(pnh_, "sample_rate_hz", 2.0);
+  warm_start_ = param(pnh_, "warm_start", true);
+  standby_delay_s_ = positive(pnh_, "standby_delay_s", standby_delay_s_);
 
   topics_ = std::make_unique<TopicWatcher>(nh_, positive(pnh_, "rate_window_s", 2.0),
                                            std::max(1, param(pnh_, "topic_queue_size", 50)),
@@ -179,10 +182,11 @@ void AgentNode::onSupervise(const ros::SteadyTimerEvent&)
 
 void AgentNode::onGraph(const ros::SteadyTimerEvent&)
 {
+  keepStandbysReady();
   std::set<std::string> own;
   for (const auto& p : supervisor_.snapshot())
   {
-    if (p.pid != 0)
+    if (p.pid != 0 && p.state != ProcState::Standby)
       own.insert(p.name);
     if (p.state != ProcState::Starting)
       continue;

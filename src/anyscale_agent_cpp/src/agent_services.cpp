@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <fstream>
+#include <limits>
 
 #include "anyscale_agent_cpp/param_loader.h"
 
@@ -11,6 +13,8 @@ namespace anyscale_agent
 {
 namespace
 {
+constexpr double kStandbyRetryS = 30.0;
+
 std::string qualified(const std::string& name)
 {
   return !name.empty() && name[0] == '/' ? name : "/" + name;
@@ -22,6 +26,19 @@ std::string join(const std::vector<std::string>& v)
   for (const auto& s : v)
     out += (out.empty() ? "" : ", ") + s;
   return out;
+}
+
+bool isPythonScript(const std::string& path)
+{
+  std::ifstream f(path);
+  std::string first_line;
+  std::getline(f, first_line);
+  return first_line.rfind("#!", 0) == 0 && first_line.find("python") != std::string::npos;
+}
+
+bool isStandby(const std::optional<ProcessInfo>& info)
+{
+  return info && info->pid != 0 && info->state == ProcState::Standby;
 }
 }  // namespace
 
@@ -59,7 +76,7 @@ bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::S
   {
     const std::string exe = resolveExecutable(decl->package, decl->type, catkinPrefixes(std::getenv("CMAKE_PREFIX_PATH")), locate);
     argv = buildArgv(*decl, exe, locate);
-    if (const auto running = supervisor_.info(name); running && running->pid != 0)
+    if (const auto running = supervisor_.info(name); running && running->pid != 0 && !isStandby(running))
     {
       res.message = "refused: " + name + " is already running here (pid " + std::to_string(running->pid) + ")";
       return true;
@@ -76,7 +93,9 @@ bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::S
   std::replace(file_name.begin(), file_name.end(), '/', '.');
   const std::string log_file = log_dir_ + "/" + file_name + ".log";
   std::string error;
-  const int pid = supervisor_.start(name, argv, log_file, &error);
+  // A warm standby becomes the node; if it died meanwhile, the node starts cold as usual.
+  const bool warm = isStandby(supervisor_.info(name)) && supervisor_.activate(name, &error) > 0;
+  const int pid = warm ? supervisor_.info(name)->pid : supervisor_.start(name, argv, log_file, &error);
   if (pid <= 0)
   {
     res.message = "failed: " + name + ": " + error;
@@ -89,7 +108,8 @@ bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::S
   }
   res.success = true;
   res.pid = pid;
-  res.message = "started " + name + " (pid " + std::to_string(pid) + ") from " + argv[0] + "; log " + log_file +
+  res.message = std::string(warm ? "activated the warm standby of " : "started ") + name + " (pid " +
+                std::to_string(pid) + ") from " + argv[0] + "; log " + log_file +
                 (req.lease_s > 0.0f ? "; lease " + std::to_string(req.lease_s) + " s" : "");
   ROS_INFO("%s", res.message.c_str());
   return true;
@@ -106,7 +126,7 @@ bool AgentNode::onStop(anyscale_msgs::StopNode::Request& req, anyscale_msgs::Sto
     leases_.remove(name);
   }
   const auto before = supervisor_.info(name);
-  if (!before || before->pid == 0)
+  if (!before || before->pid == 0 || isStandby(before))
   {
     res.message = name + " is not running on scale " + scale_ +
                   (before ? " (it " + std::string(toString(before->state)) + ")" : "");
@@ -117,7 +137,12 @@ bool AgentNode::onStop(anyscale_msgs::StopNode::Request& req, anyscale_msgs::Sto
     }
     return true;
   }
-  supervisor_.stop(name);
+  if (!std::isfinite(req.sigint_timeout_s) || req.sigint_timeout_s < 0.0f)
+  {
+    res.message = "refused: sigint_timeout_s must be >= 0 seconds, got " + std::to_string(req.sigint_timeout_s);
+    return true;
+  }
+  supervisor_.stop(name, ProcState::Exited, req.sigint_timeout_s);
   if (!req.wait)
   {
     res.success = true;
@@ -154,7 +179,7 @@ bool AgentNode::onRenew(anyscale_msgs::RenewLeases::Request& req, anyscale_msgs:
   {
     const std::string name = qualified(node);
     const auto info = supervisor_.info(name);
-    if (!info || info->pid == 0 || info->state == ProcState::Stopping)
+    if (!info || info->pid == 0 || info->state == ProcState::Stopping || info->state == ProcState::Standby)
     {
       res.not_running.push_back(node);
       res.success = false;
@@ -168,6 +193,59 @@ bool AgentNode::onRenew(anyscale_msgs::RenewLeases::Request& req, anyscale_msgs:
   if (!without_lease.empty())
     res.message += "; running without a lease, unchanged: " + join(without_lease);
   return true;
+}
+
+std::vector<std::string> AgentNode::standbyArgv(const NodeDecl& decl)
+{
+  const PackageLocator locate = [this](const std::string& p) { return locatePackage(p); };
+  const auto prefixes = catkinPrefixes(std::getenv("CMAKE_PREFIX_PATH"));
+  const std::string exe = resolveExecutable(decl.package, decl.type, prefixes, locate);
+  if (!isPythonScript(exe))
+    throw ModelError(exe + " is not a Python script (a warm standby pre-imports a rospy node)");
+  std::vector<std::string> argv{resolveExecutable("anyscale_agent_cpp", "python_standby", prefixes, locate)};
+  for (auto& a : buildArgv(decl, exe, locate))
+    argv.push_back(std::move(a));
+  return argv;
+}
+
+void AgentNode::keepStandbysReady()
+{
+  if (!warm_start_)
+    return;
+  const double now = steadyNow();
+  for (const auto& node : model_.names())
+  {
+    const NodeDecl* decl = model_.find(node);
+    if (!decl->warm_start)
+      continue;
+    const std::string name = qualified(node);
+    const auto info = supervisor_.info(name);
+    double& due = standby_due_.emplace(name, now).first->second;
+    if (info && info->pid != 0)
+    {
+      if (info->state != ProcState::Standby)
+        due = now + standby_delay_s_;  // prepared once the node has been gone this long
+      continue;
+    }
+    if (now < due)
+      continue;
+    due = now + kStandbyRetryS;  // a standby that dies by itself is not restarted in a loop
+    std::string file_name = node, error;
+    std::replace(file_name.begin(), file_name.end(), '/', '.');
+    try
+    {
+      const int pid = supervisor_.startStandby(name, standbyArgv(*decl), log_dir_ + "/" + file_name + ".log", &error);
+      if (pid > 0)
+        ROS_INFO("warm standby of %s ready to start (pid %d)", name.c_str(), pid);
+      else
+        ROS_WARN("warm standby of %s: %s; retrying in %.0f s", name.c_str(), error.c_str(), kStandbyRetryS);
+    }
+    catch (const ModelError& e)
+    {
+      due = std::numeric_limits<double>::infinity();
+      ROS_ERROR("no warm standby of %s: %s; it starts cold", name.c_str(), e.what());
+    }
+  }
 }
 
 bool AgentNode::onList(anyscale_msgs::ListNodes::Request&, anyscale_msgs::ListNodes::Response& res)

@@ -141,6 +141,12 @@ NodeModel NodeModel::parse(const YAML::Node& root, const std::string& source)
         throw ModelError(where + ": launch.params must be a map {name: value}");
       d.params = params;
     }
+    if (const YAML::Node warm = launch["warm_start"])
+    {
+      if (!warm.IsScalar() || (warm.Scalar() != "true" && warm.Scalar() != "false"))
+        throw ModelError(where + ": launch.warm_start must be true or false");
+      d.warm_start = warm.Scalar() == "true";
+    }
     model.nodes_.emplace(d.name, std::move(d));
   }
   return model;

@@ -4,6 +4,7 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/prctl.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -23,20 +24,6 @@ Clock::duration seconds(double s)
   return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(std::max(0.0, s)));
 }
 
-// Closes an fd on scope exit; the parent must not leak log or pipe fds into later children.
-struct Fd
-{
-  int fd = -1;
-  explicit Fd(int f) : fd(f) {}
-  ~Fd()
-  {
-    if (fd >= 0)
-      ::close(fd);
-  }
-  Fd(const Fd&) = delete;
-  Fd& operator=(const Fd&) = delete;
-};
-
 int failSpawn(std::string* error, const std::string& why)
 {
   if (error)
@@ -50,6 +37,30 @@ bool groupExists(int pgid)
 }
 }  // namespace
 
+UniqueFd& UniqueFd::operator=(UniqueFd&& other) noexcept
+{
+  if (this != &other)
+  {
+    reset();
+    fd_ = other.release();
+  }
+  return *this;
+}
+
+int UniqueFd::release()
+{
+  const int fd = fd_;
+  fd_ = -1;
+  return fd;
+}
+
+void UniqueFd::reset()
+{
+  if (fd_ >= 0)
+    ::close(fd_);
+  fd_ = -1;
+}
+
 const char* toString(ProcState s)
 {
   switch (s)
@@ -60,6 +71,7 @@ const char* toString(ProcState s)
     case ProcState::Exited: return "exited";
     case ProcState::Replaced: return "replaced";
     case ProcState::LeaseExpired: return "lease expired";
+    case ProcState::Standby: return "standby";
   }
   return "?";
 }
@@ -106,13 +118,12 @@ bool Supervisor::isAlive(const Record& r)
   return r.info.pid != 0;
 }
 
-int Supervisor::spawn(const std::vector<std::string>& argv, int log_fd, std::string* error)
+int Supervisor::spawn(const std::vector<std::string>& argv, int stdin_fd, int log_fd, std::string* error)
 {
-  Fd devnull(::open("/dev/null", O_RDONLY | O_CLOEXEC));
   int pipe_fds[2];
   if (::pipe2(pipe_fds, O_CLOEXEC) != 0)
     return failSpawn(error, std::string("pipe2: ") + std::strerror(errno));
-  Fd err_read(pipe_fds[0]), err_write(pipe_fds[1]);
+  UniqueFd err_read(pipe_fds[0]), err_write(pipe_fds[1]);
   const pid_t parent = ::getpid();
   const int death_signal = options_.parent_death_signal;
 
@@ -142,27 +153,26 @@ int Supervisor::spawn(const std::vector<std::string>& argv, int log_fd, std::str
     sigset_t none;
     sigemptyset(&none);
     ::sigprocmask(SIG_SETMASK, &none, nullptr);
-    ::dup2(devnull.fd, STDIN_FILENO);
+    ::dup2(stdin_fd, STDIN_FILENO);
     ::dup2(log_fd, STDOUT_FILENO);
     ::dup2(log_fd, STDERR_FILENO);
     // The agent's sockets (its XML-RPC port, topic connections) must not live on in children.
-    const int keep = err_write.fd;
+    const int keep = err_write.get();
     if (keep > 3)
       ::close_range(3, keep - 1, 0);
     ::close_range(keep + 1, ~0U, 0);
     ::execv(cargv[0], cargv.data());
     const int e = errno;
-    ssize_t ignored = ::write(err_write.fd, &e, sizeof e);
+    ssize_t ignored = ::write(err_write.get(), &e, sizeof e);
     (void)ignored;
     ::_exit(127);
   }
 
-  ::close(err_write.fd);
-  err_write.fd = -1;
+  err_write.reset();
   int child_errno = 0;
   ssize_t n;
   do
-    n = ::read(err_read.fd, &child_errno, sizeof child_errno);
+    n = ::read(err_read.get(), &child_errno, sizeof child_errno);
   while (n < 0 && errno == EINTR);
   if (n == sizeof child_errno)
   {
@@ -177,6 +187,18 @@ int Supervisor::spawn(const std::vector<std::string>& argv, int log_fd, std::str
 int Supervisor::start(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
                       std::string* error)
 {
+  return launch(name, argv, log_file, false, error);
+}
+
+int Supervisor::startStandby(const std::string& name, const std::vector<std::string>& argv,
+                             const std::string& log_file, std::string* error)
+{
+  return launch(name, argv, log_file, true, error);
+}
+
+int Supervisor::launch(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
+                       bool standby, std::string* error)
+{
   std::lock_guard<std::mutex> lock(mutex_);
   auto fail = [&](const std::string& why) {
     if (error)
@@ -189,16 +211,31 @@ int Supervisor::start(const std::string& name, const std::vector<std::string>& a
   if (existing != records_.end() && isAlive(existing->second))
     return fail("node '" + name + "' is already running here (pid " + std::to_string(existing->second.info.pid) + ")");
 
-  Fd log(::open(log_file.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644));
-  if (log.fd < 0)
+  UniqueFd log(::open(log_file.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644));
+  if (log.get() < 0)
     return fail("cannot open log file '" + log_file + "': " + std::strerror(errno));
+  // The child's stdin: /dev/null, or for a standby one end of a socket pair it waits on (a
+  // socket, so that writing to a standby that just died gives EPIPE, not SIGPIPE).
+  UniqueFd child_stdin, activation;
+  if (standby)
+  {
+    int fds[2];
+    if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, fds) != 0)
+      return fail(std::string("socketpair: ") + std::strerror(errno));
+    child_stdin = UniqueFd(fds[0]);
+    activation = UniqueFd(fds[1]);
+  }
+  else
+  {
+    child_stdin = UniqueFd(::open("/dev/null", O_RDONLY | O_CLOEXEC));
+  }
   int child_pid = 0;
   {
     std::unique_lock<std::mutex> spawn_lock(spawn_mutex_);
     spawn_cv_.wait(spawn_lock, [this] { return !spawn_job_; });
     bool done = false;
     spawn_job_ = [&] {
-      child_pid = spawn(argv, log.fd, error);
+      child_pid = spawn(argv, child_stdin.get(), log.get(), error);
       done = true;
     };
     spawn_cv_.notify_all();
@@ -211,16 +248,43 @@ int Supervisor::start(const std::string& name, const std::vector<std::string>& a
   Record r;
   r.info.name = name;
   r.info.pid = pid;
-  r.info.state = ProcState::Starting;
+  r.info.state = standby ? ProcState::Standby : ProcState::Starting;
   r.info.log_file = log_file;
   r.info.started = Clock::now();
   r.group = Group{pid, 0, Clock::time_point::max()};
+  r.activation = std::move(activation);
   records_[name] = std::move(r);
   changed_.notify_all();
   return pid;
 }
 
-bool Supervisor::stop(const std::string& name, ProcState final_state)
+int Supervisor::activate(const std::string& name, std::string* error)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  reapLocked();  // a standby that died since the last poll must not count as ready
+  auto it = records_.find(name);
+  if (it == records_.end() || !isAlive(it->second) || it->second.info.state != ProcState::Standby)
+  {
+    if (error)
+      *error = "no warm standby of '" + name + "' is waiting";
+    return 0;
+  }
+  Record& r = it->second;
+  static const char kStart[] = "start\n";
+  if (::send(r.activation.get(), kStart, sizeof kStart - 1, MSG_NOSIGNAL) != ssize_t(sizeof kStart - 1))
+  {
+    if (error)
+      *error = "cannot activate the standby of '" + name + "': " + std::strerror(errno);
+    return 0;
+  }
+  r.activation.reset();  // the node sees end-of-file on stdin, as with /dev/null
+  r.info.state = ProcState::Starting;
+  r.info.started = Clock::now();
+  changed_.notify_all();
+  return r.info.pid;
+}
+
+bool Supervisor::stop(const std::string& name, ProcState final_state, double kill_after_s)
 {
   std::lock_guard<std::mutex> lock(mutex_);
   auto it = records_.find(name);
@@ -237,7 +301,13 @@ bool Supervisor::stop(const std::string& name, ProcState final_state)
     // belongs to the new instance on the other side: straight to SIGKILL.
     if (final_state == ProcState::LeaseExpired)
       r.group.stage = 2;
-    escalate(r.group, Clock::now());
+    const auto now = Clock::now();
+    escalate(r.group, now);
+    if (kill_after_s > 0.0 && r.group.stage == 1)
+    {
+      r.group.stage = 2;  // the next escalation is SIGKILL
+      r.group.deadline = now + seconds(kill_after_s);
+    }
   }
   return true;
 }
@@ -277,11 +347,14 @@ void Supervisor::reapLocked()
     {
       if (r.info.pid != pid)
         continue;
+      const bool was_standby = r.info.state == ProcState::Standby;
       r.info.pid = 0;
       r.info.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
       r.info.exit_signal = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
       r.info.state = r.info.stop_requested ? r.final_state : ProcState::Exited;
-      if (!r.info.stop_requested)
+      r.activation.reset();
+      // A standby that ended was never a node: nothing for the node-exit handling to do.
+      if (!r.info.stop_requested && !was_standby)
         unrequested_exits_.push_back(name);
       // Members that outlive the leader are cleared the same way, continuing its sequence.
       if (groupExists(r.group.pgid))

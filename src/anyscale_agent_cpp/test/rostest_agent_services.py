@@ -101,6 +101,36 @@ class AgentServicesTest(unittest.TestCase):
         stop = self.agent.stop(node="teleop", wait=True)
         self.assertFalse(stop.success)
 
+    def _standby(self, node, agent=None):
+        info = (agent or self.agent).node(node)
+        return info if info is not None and info.state == NodeProcess.STANDBY else None
+
+    def test_warm_standby_becomes_the_node_and_is_prepared_again(self):
+        standby = wait_for(lambda: self._standby("/warm_talker"), 20.0)
+        self.assertTrue(standby, "no warm standby of /warm_talker (launch.warm_start: true)")
+        self.assertTrue(alive(standby.pid))
+        self.assertIsNone(registered_pid("/warm_talker"))       # not a node yet
+        # A standby is not a running node: stop and renew leave it alone.
+        self.assertFalse(self.agent.stop(node="warm_talker", wait=True).success)
+        self.assertEqual(self.agent.renew(nodes=["warm_talker"], lease_s=2.0).not_running,
+                         ["warm_talker"])
+        self.assertTrue(alive(standby.pid))
+
+        res = self._start("warm_talker")
+        self.assertTrue(res.success, res.message)
+        self.assertIn("warm standby", res.message)
+        self.assertEqual(res.pid, standby.pid)
+        self.assertEqual(wait_for(lambda: registered_pid("/warm_talker"), 20.0), res.pid)
+        from std_msgs.msg import String
+        rospy.wait_for_message("/warm_chatter", String, timeout=10.0)   # its remap in effect
+        stop = self.agent.stop(node="warm_talker", wait=True)
+        self.assertTrue(stop.success, stop.message)
+        self.assertFalse(alive(res.pid))
+        # ~standby_delay_s (2 s) after the node is gone, a new standby waits again.
+        again = wait_for(lambda: self._standby("/warm_talker"), 15.0)
+        self.assertTrue(again, "the standby was not prepared again after the stop")
+        self.assertNotEqual(again.pid, res.pid)
+
     def test_lease_renewed_keeps_running_then_expires(self):
         res = self._start("talker_cpp", lease_s=2.0)
         self.assertTrue(res.success, res.message)
@@ -136,6 +166,9 @@ class AgentServicesTest(unittest.TestCase):
                     self.assertTrue(res.success, res.message)
                     pids.append(res.pid)
                 self.assertTrue(wait_for(lambda: registered_pid("/burner"), 20.0))
+                standby = wait_for(lambda: self._standby("/warm_talker", other), 20.0)
+                self.assertTrue(standby)
+                pids.append(standby.pid)
                 children = [c.pid for p in pids for c in psutil.Process(p).children(recursive=True)]
                 agent_proc.send_signal(sig)
                 agent_proc.wait(timeout=30)

@@ -25,7 +25,7 @@ nodes:
       params: {map_file: $(find nav_pkg)/maps/m.yaml, particles: 500, nested: {a: [1, 2]}}
     cpu_usage: {robot: 50}
   - name: robot/camera
-    launch: {package: drivers, type: camera.py}
+    launch: {package: drivers, type: camera.py, warm_start: true}
 )";
 
 std::string locate(const std::string& pkg)
@@ -50,6 +50,8 @@ TEST(NodeModel, ParsesDeclaredNodes)
   EXPECT_EQ(d, m.find("amcl"));
   EXPECT_EQ(d->package, "nav_pkg");
   EXPECT_EQ(d->params["particles"].as<int>(), 500);
+  EXPECT_FALSE(d->warm_start);
+  EXPECT_TRUE(m.find("robot/camera")->warm_start);
   EXPECT_EQ(m.find("teleop"), nullptr);
 }
 
@@ -92,6 +94,9 @@ TEST(NodeModel, ErrorsNameTheNodeAndKey)
                 .find("declared twice"),
             std::string::npos);
   EXPECT_NE(error_of("nodes: [{name: a, launch: {package: p, type: t, args: x}}]").find("launch.args"),
+            std::string::npos);
+  EXPECT_NE(error_of("nodes: [{name: a, launch: {package: p, type: t, warm_start: yes please}}]")
+                .find("launch.warm_start must be true or false"),
             std::string::npos);
   try
   {

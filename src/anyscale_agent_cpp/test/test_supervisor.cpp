@@ -6,6 +6,7 @@
 
 #include <cerrno>
 #include <chrono>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <thread>
@@ -17,9 +18,40 @@ using Clock = std::chrono::steady_clock;
 
 namespace
 {
+// The logs of one test run, in a directory removed when the run ends.
+class TempDir
+{
+public:
+  TempDir()
+  {
+    char path[] = "/tmp/anyscale_supervisor_test_XXXXXX";
+    if (::mkdtemp(path))
+      path_ = path;
+  }
+  ~TempDir()
+  {
+    std::error_code ignored;
+    if (!path_.empty())
+      std::filesystem::remove_all(path_, ignored);
+  }
+  const std::string& path() const { return path_; }
+
+private:
+  std::string path_;
+};
+
 std::string tempLog(const std::string& tag)
 {
-  return "/tmp/anyscale_supervisor_test_" + std::to_string(getpid()) + "_" + tag + ".log";
+  static TempDir dir;
+  return dir.path() + "/" + tag + ".log";
+}
+
+std::string readFile(const std::string& path)
+{
+  std::ifstream f(path);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
 }
 
 // A process that is gone and reaped: kill() finds nothing (a zombie would still be found).
@@ -131,6 +163,23 @@ TEST(Supervisor, ChildIgnoringSigintAndSigtermIsKilledAfterBothTimeouts)
   EXPECT_TRUE(waitUntil([&] { return groupGone(pid); }, 5.0, s));
 }
 
+TEST(Supervisor, ShortGraceGoesFromSigintStraightToSigkill)
+{
+  Supervisor s;  // staged defaults of 15 s + 2 s, which a migration's stop does not wait for
+  std::string err;
+  const int pid = s.start("slow", sh("trap '' INT TERM; while :; do sleep 0.05; done"), tempLog("slow"), &err);
+  ASSERT_GT(pid, 0) << err;
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  const auto t0 = Clock::now();
+  ASSERT_TRUE(s.stop("slow", ProcState::Exited, 0.3));
+  ASSERT_TRUE(s.waitGone("slow", 10.0));
+  const double took = std::chrono::duration<double>(Clock::now() - t0).count();
+  EXPECT_GE(took, 0.29);
+  EXPECT_LT(took, 1.5);
+  EXPECT_EQ(s.info("slow")->exit_signal, SIGKILL);
+  EXPECT_TRUE(waitUntil([&] { return groupGone(pid); }, 5.0, s));
+}
+
 TEST(Supervisor, ExpiredLeaseKillsAtOnceWithoutTheGracefulStages)
 {
   Supervisor s;  // roslaunch's 15 s + 2 s grace: a lease end must not wait for them
@@ -186,12 +235,60 @@ TEST(Supervisor, OutputGoesToTheLogFile)
   std::string err;
   ASSERT_GT(s.start("echo", sh("echo hello-out; echo hello-err >&2"), log, &err), 0) << err;
   ASSERT_TRUE(s.waitGone("echo", 10.0));
-  std::ifstream f(log);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  EXPECT_NE(ss.str().find("hello-out"), std::string::npos);
-  EXPECT_NE(ss.str().find("hello-err"), std::string::npos);
+  const std::string out = readFile(log);
+  EXPECT_NE(out.find("hello-out"), std::string::npos);
+  EXPECT_NE(out.find("hello-err"), std::string::npos);
   EXPECT_EQ(s.info("echo")->log_file, log);
+}
+
+TEST(Supervisor, StandbyWaitsForActivationThenRunsAsANode)
+{
+  const std::string log = tempLog("standby");
+  std::remove(log.c_str());
+  Supervisor s;
+  std::string err;
+  const int pid = s.startStandby("warm", sh("read line; echo \"got:$line\"; exit 4"), log, &err);
+  ASSERT_GT(pid, 0) << err;
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_EQ(s.info("warm")->state, ProcState::Standby);
+  EXPECT_EQ(readFile(log), "");  // still waiting
+  EXPECT_EQ(s.start("warm", {"/bin/true"}, log, &err), 0) << "a standby holds the name";
+
+  EXPECT_EQ(s.activate("warm", &err), pid) << err;
+  EXPECT_EQ(s.info("warm")->state, ProcState::Starting);
+  ASSERT_TRUE(s.waitGone("warm", 10.0));
+  EXPECT_EQ(readFile(log), "got:start\n");
+  EXPECT_EQ(s.info("warm")->exit_code, 4);
+  // Once activated it is a node like any other: its own exit is reported.
+  EXPECT_EQ(s.takeUnrequestedExits(), std::vector<std::string>{"warm"});
+}
+
+TEST(Supervisor, StandbyThatEndsIsNoNodeExitAndCannotBeActivated)
+{
+  Supervisor s;
+  std::string err;
+  ASSERT_GT(s.startStandby("broken", sh("exit 1"), tempLog("broken"), &err), 0) << err;
+  ASSERT_TRUE(s.waitGone("broken", 10.0));
+  EXPECT_TRUE(s.takeUnrequestedExits().empty());
+  EXPECT_EQ(s.activate("broken", &err), 0);
+  EXPECT_NE(err.find("no warm standby"), std::string::npos) << err;
+
+  ASSERT_GT(s.start("plain", {"/bin/sleep", "30"}, tempLog("plain"), &err), 0) << err;
+  EXPECT_EQ(s.activate("plain", &err), 0) << "a running node is no standby";
+  s.stop("plain");
+  ASSERT_TRUE(s.waitGone("plain", 10.0));
+}
+
+TEST(Supervisor, StoppedStandbyEndsAndIsNoNodeExit)
+{
+  Supervisor s;
+  std::string err;
+  const int pid = s.startStandby("waiting", sh("read line; sleep 30"), tempLog("waiting"), &err);
+  ASSERT_GT(pid, 0) << err;
+  ASSERT_TRUE(s.stop("waiting"));
+  ASSERT_TRUE(s.waitGone("waiting", 10.0));
+  EXPECT_TRUE(processGone(pid));
+  EXPECT_TRUE(s.takeUnrequestedExits().empty());
 }
 
 TEST(Supervisor, DestructorStopsEverything)

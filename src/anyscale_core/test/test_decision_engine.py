@@ -1,6 +1,7 @@
 """The decision node's logic on the test bed, driven by synthetic agent reports: the paper's
 scenarios (good link, weak link, link loss, restore after T, slow connections), leases,
 state hand-off and adoption after a restart."""
+import dataclasses
 import math
 
 import pytest
@@ -146,10 +147,27 @@ def test_critical_nodes_never_move(engine, testbed_ch):
                 assert engine.mapping()[testbed_ch.node_names[i]] == "robot"
 
 
+def test_no_moves_while_the_initial_configuration_comes_up(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"))
+    e.adopt_or_start(reports(0.0), 0.0)
+    for t in (1.0, 2.0, 3.0):
+        assert e.tick(reports(t), t, moves_allowed=False).actions == []
+    assert remote(e) == []
+    e.tick(reports(4.0), 4.0)
+    assert remote(e) == ["amcl"]                     # moves start with the first allowed tick
+
+
 def test_background_load_excludes_the_models_nodes(testbed_ch):
     e = DecisionEngine(testbed_ch, make_allocator("paper"), DecisionParams(cpu_smoothing_s=0.0))
     state = e.dynamic_state(reports(1.0, laptop_load=50.0, laptop_running=("amcl",)), 1.0)
     assert state.scale_load["laptop"] == pytest.approx(50.0 - 10.0 / 4.0)
+
+
+def test_warm_standbys_importing_are_no_background_load(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"), DecisionParams(cpu_smoothing_s=0.0))
+    busy = reports(1.0, laptop_load=80.0)
+    busy["laptop"] = dataclasses.replace(busy["laptop"], standby_cpu=300.0)   # 3 of 4 cores
+    assert e.dynamic_state(busy, 1.0).scale_load["laptop"] == pytest.approx(80.0 - 75.0)
 
 
 def test_a_cpu_burst_of_one_report_moves_nothing_back_but_a_lasting_load_does(engine):

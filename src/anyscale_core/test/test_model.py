@@ -15,6 +15,7 @@ def test_testbed_loads(testbed):
     amcl = testbed.node("amcl")
     assert amcl.launch.package == "anyscale_nav_demo"
     assert amcl.state_handoff.kind == "pose"
+    assert amcl.launch.warm_start and not testbed.node("laser").launch.warm_start
 
 
 BAD_MODELS = [
@@ -37,6 +38,8 @@ BAD_MODELS = [
     (("nodes", 9, "launch", "type"), "../../bin/sh", "nodes[9] (amcl).launch.type", "no path"),
     (("nodes", 9, "launch", "package"), DELETE, "nodes[9] (amcl).launch.package", "missing"),
     (("nodes", 9, "pinned"), "server", "nodes[9] (amcl).pinned", "unknown scale"),
+    (("nodes", 9, "launch", "warm_start"), "yes", "nodes[9] (amcl).launch.warm_start",
+     "true or false"),
     (("nodes", 9, "cpu_usage"), {"laptop": 10}, "nodes[9] (amcl).cpu_usage", "'robot'"),
     (("nodes", 9, "state_handoff", "kind"), "memory", "state_handoff.kind", "pose"),
     (("nodes", 9, "colour"), "green", "nodes[9] (amcl).colour", "unknown key"),

@@ -21,7 +21,8 @@ def status(scale="laptop", is_master=False, **kw):
                  NodeProcess(name="/ar_recognition", state=NodeProcess.STARTING, cpu_percent=5.0),
                  NodeProcess(name="/old", state=NodeProcess.EXITED, cpu_percent=0.0),
                  NodeProcess(name="/amcl_gone", state=NodeProcess.LEASE_EXPIRED),
-                 NodeProcess(name="/rviz", state=NodeProcess.RUNNING, cpu_percent=9.0)]
+                 NodeProcess(name="/rviz", state=NodeProcess.RUNNING, cpu_percent=9.0),
+                 NodeProcess(name="/old", state=NodeProcess.STANDBY, cpu_percent=60.0)]
     msg.topics = [TopicStatistics(topic="/scan", rate_hz=10.0, last_message_age_s=0.05),
                   TopicStatistics(topic="/amcl_pose", rate_hz=5.0, last_message_age_s=2.0),
                   TopicStatistics(topic="/never", rate_hz=0.0, last_message_age_s=math.inf)]
@@ -35,6 +36,7 @@ def test_scale_report_keeps_live_model_nodes_and_effective_rates():
     r = conv.scale_report_from_msg(status(), 12.0, names)
     assert (r.scale, r.received_at, r.cpu_percent, r.capacity_cores) == ("laptop", 12.0, 25.0, 4.0)
     assert r.running == {"amcl": 40.0, "ar_recognition": 5.0}   # rviz is not in the model
+    assert r.standby_cpu == 60.0                                 # a standby is not running
     assert r.topic_rates["/scan"] == 10.0
     assert r.topic_rates["/amcl_pose"] == pytest.approx(0.5)     # silent for 2 s
     assert r.topic_rates["/never"] == 0.0
@@ -108,6 +110,7 @@ def test_params_defaults_and_errors():
     assert (p.model, p.allocator, p.period_s) == ("/m.yaml", "paper", 1.0)
     assert (p.engine.hysteresis_s, p.engine.lease_s, p.engine.status_timeout_s) == (10.0, 3.0, 1.5)
     assert (p.engine.act_at_tolerance, p.engine.startup_grace_s) == (0.5, 5.0)
+    assert p.stop_sigint_timeout_s == 0.5
     with pytest.raises(ParamError, match="~model"):
         read_params(params())
     with pytest.raises(ParamError, match="~period_s"):

@@ -16,6 +16,7 @@ def frame(testbed, **kw):
     robot = ScaleStatus(scale="robot", is_master=True, cores=2, cpu_percent=55.0,
                         memory_total_bytes=4 * 2**30, memory_available_bytes=3 * 2**30)
     robot.nodes = [NodeProcess(name="/amcl", state=NodeProcess.EXITED),
+                   NodeProcess(name="/amcl", state=NodeProcess.STANDBY, rss_bytes=80 * 2**20),
                    NodeProcess(name="/laser", state=NodeProcess.RUNNING, cpu_percent=3.0,
                                rss_bytes=20 * 2**20)]
     robot.topics = [TopicStatistics(topic="/scan", rate_hz=9.8, last_message_age_s=0.1),
@@ -51,6 +52,7 @@ def test_scales_nodes_connections_and_events(testbed):
     amcl = row(text, "amcl").split()              # the live instance, not the exited one
     assert amcl[:4] == ["amcl", "laptop", "RUNNING", "36.0%"] and "2.5" in amcl
     assert row(text, "laser").split()[:3] == ["laser", "robot", "RUNNING"]
+    assert "warm standby: amcl on robot (80 MB)" in text   # not a row: it is no node yet
     assert "not seen" in row(text, "ekf")
     scan_amcl = row(text, "laser->amcl")          # measured where amcl runs: the laptop
     assert "10.0 Hz" in scan_amcl and scan_amcl.endswith("ok")

@@ -52,6 +52,10 @@ private:
   void onSupervise(const ros::SteadyTimerEvent&);   // reaping, signal escalation, lease expiry
   void onGraph(const ros::SteadyTimerEvent&);       // master queries: registration, local topics
 
+  // Warm standbys (agent_services.cpp): one per warm_start node that does not run here.
+  void keepStandbysReady();
+  std::vector<std::string> standbyArgv(const NodeDecl& decl);
+
   std::vector<anyscale_msgs::NodeProcess> nodeProcesses();
   void diagnoseNodes(diagnostic_updater::DiagnosticStatusWrapper& stat);
   void diagnoseScale(diagnostic_updater::DiagnosticStatusWrapper& stat);
@@ -67,6 +71,9 @@ private:
   std::string log_dir_;
   bool clear_params_ = true;
   double sample_period_s_ = 0.5;
+  bool warm_start_ = true;          // ~warm_start: false ignores the model's launch.warm_start
+  double standby_delay_s_ = 2.0;    // a node's standby is prepared this long after it stopped
+  std::map<std::string, double> standby_due_;  // node -> steady time its standby may start
 
   NodeModel model_;
   Supervisor supervisor_;

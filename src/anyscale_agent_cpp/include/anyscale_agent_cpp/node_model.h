@@ -27,6 +27,7 @@ struct NodeDecl
   std::vector<std::string> args;
   std::vector<std::pair<std::string, std::string>> remaps;
   YAML::Node params;  // map of private parameters (may be null)
+  bool warm_start = false;  // keep a warm standby (scripts/python_standby) where it does not run
 };
 
 // Package name -> its source/share directory, or "" if unknown (rospack in the ROS layer).

@@ -24,6 +24,7 @@ enum class ProcState
   Exited,        // ended by itself or by a stop
   Replaced,      // ended because a same-name node registered elsewhere (set by the ROS layer)
   LeaseExpired,  // stopped because its lease ran out
+  Standby,       // a warm standby: started, imports done or under way, waiting for activate()
 };
 const char* toString(ProcState s);
 
@@ -56,6 +57,25 @@ struct SupervisorOptions
   int parent_death_signal = SIGKILL;
 };
 
+// Owns a file descriptor: closed when destroyed or reset; movable, not copyable.
+class UniqueFd
+{
+public:
+  UniqueFd() = default;
+  explicit UniqueFd(int fd) : fd_(fd) {}
+  UniqueFd(UniqueFd&& other) noexcept : fd_(other.release()) {}
+  UniqueFd& operator=(UniqueFd&& other) noexcept;
+  UniqueFd(const UniqueFd&) = delete;
+  UniqueFd& operator=(const UniqueFd&) = delete;
+  ~UniqueFd() { reset(); }
+  int get() const { return fd_; }
+  int release();
+  void reset();
+
+private:
+  int fd_ = -1;
+};
+
 class Supervisor
 {
 public:
@@ -71,10 +91,20 @@ public:
   int start(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
             std::string* error);
 
+  // Starts a warm standby of `name` the same way, but in state Standby and with a socket on its
+  // stdin: argv is a program that prepares the node and waits for the line "start" (see
+  // scripts/python_standby). End of input (the agent's end) tells it to quit.
+  int startStandby(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
+                   std::string* error);
+  // Sends "start" to the standby of `name`, which becomes an ordinary Starting node; its pid,
+  // or 0 with the reason if there is no live standby.
+  int activate(const std::string& name, std::string* error);
+
   // Begins the stop sequence; returns at once. `final_state` is what the node shows once gone
-  // (Exited, or LeaseExpired: then SIGKILL at once, no SIGINT/SIGTERM grace). False if `name`
-  // is not alive.
-  bool stop(const std::string& name, ProcState final_state = ProcState::Exited);
+  // (Exited, or LeaseExpired: then SIGKILL at once, no SIGINT/SIGTERM grace). With
+  // kill_after_s > 0, SIGKILL follows SIGINT after that long instead of the staged timeouts.
+  // False if `name` is not alive.
+  bool stop(const std::string& name, ProcState final_state = ProcState::Exited, double kill_after_s = 0.0);
 
   // Waits until `name` is no longer alive, polling itself; false on timeout.
   bool waitGone(const std::string& name, double timeout_s);
@@ -108,11 +138,14 @@ private:
     ProcessInfo info;
     ProcState final_state = ProcState::Exited;
     Group group;
+    UniqueFd activation;  // the agent's end of a standby's stdin
   };
   static bool isAlive(const Record& r);
   void escalate(Group& g, std::chrono::steady_clock::time_point now);
   void reapLocked();
-  int spawn(const std::vector<std::string>& argv, int log_fd, std::string* error);
+  int launch(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
+             bool standby, std::string* error);
+  int spawn(const std::vector<std::string>& argv, int stdin_fd, int log_fd, std::string* error);
   void spawnerLoop();
 
   SupervisorOptions options_;

@@ -39,9 +39,10 @@ class AgentClient:
     SERVICES = {"start_node": StartNode, "stop_node": StopNode, "renew_leases": RenewLeases,
                 "list_nodes": ListNodes, "set_watched_topics": SetWatchedTopics}
 
-    def __init__(self, timeout_s: float, stop_timeout_s: float):
+    def __init__(self, timeout_s: float, stop_timeout_s: float, stop_sigint_timeout_s: float = 0.0):
         self.timeout_s = timeout_s
         self.stop_timeout_s = stop_timeout_s
+        self.stop_sigint_timeout_s = stop_sigint_timeout_s
 
     def call(self, scale: str, service: str, timeout_s: Optional[float] = None, **request):
         # A fresh proxy per call: proxies are not meant to be shared between threads.
@@ -54,7 +55,8 @@ class AgentClient:
                          lease_s=lease_s)
 
     def stop(self, scale, node):
-        return self.call(scale, "stop_node", self.stop_timeout_s, node=node, wait=True)
+        return self.call(scale, "stop_node", self.stop_timeout_s, node=node, wait=True,
+                         sigint_timeout_s=self.stop_sigint_timeout_s)
 
     def renew(self, scale, nodes, lease_s):
         return self.call(scale, "renew_leases", min(self.timeout_s, lease_s), nodes=list(nodes),

@@ -38,6 +38,7 @@ class ScaleReport:
     topic_rates: Mapping[str, float] = field(default_factory=dict)  # topic -> effective Hz
     link_up: bool = True
     bandwidth_mbps: float = math.nan             # measured estimate; NaN = not yet measured
+    standby_cpu: float = 0.0                     # warm standbys' CPU, % of one core
 
 
 def effective_rate(rate_hz: float, last_message_age_s: float) -> float:
@@ -137,8 +138,13 @@ class DecisionEngine:
         return TickResult(actions, events, self.dynamic_state(reports, now), [])
 
     # --- every period -------------------------------------------------------------------------
-    def tick(self, reports: Mapping[str, ScaleReport], now: float) -> TickResult:
+    def tick(self, reports: Mapping[str, ScaleReport], now: float,
+             moves_allowed: bool = True) -> TickResult:
+        """One period. With moves_allowed False (the initial configuration is still coming up:
+        its rates mean nothing yet) only the leases are renewed."""
         state = self.dynamic_state(reports, now)
+        if not moves_allowed:
+            return TickResult(self._renewals(state.up_vector(self.ch)), [], state, [])
         violating = self._update_trackers(reports, now)
         ctx = AllocationContext(now, self.params.hysteresis_s, dict(self.migrated_back_at),
                                 frozenset(violating))
@@ -205,8 +211,11 @@ class DecisionEngine:
         return DynamicState(bandwidth, loads, link_up)
 
     def _background_load(self, report: ScaleReport) -> float:
-        """Scale CPU not explained by the model's nodes running there (% of the scale)."""
-        ours = sum(report.running.get(n, 0.0) for n in self.ch.node_names)
+        """Scale CPU not explained by the model's nodes running there (% of the scale). Warm
+        standbys do not count: their imports run in SCHED_IDLE (where the agent may), yielding
+        to any other work, and last seconds; as load they would keep nodes away from a scale
+        whose agent just prepared their standbys."""
+        ours = sum(report.running.get(n, 0.0) for n in self.ch.node_names) + report.standby_cpu
         load = report.cpu_percent - ours / max(report.capacity_cores, 1e-9)
         return float(np.clip(load, 0.0, 100.0))
 

@@ -39,6 +39,7 @@ class NodeParams:
     service_timeout_s: float
     stop_timeout_s: float
     adopt_wait_s: float
+    stop_sigint_timeout_s: float
 
 
 def read_params(get=rospy.get_param) -> NodeParams:
@@ -66,7 +67,8 @@ def read_params(get=rospy.get_param) -> NodeParams:
         raise ParamError(f"~act_at_tolerance: expected 0..1, got {engine.act_at_tolerance:g}")
     return NodeParams(model, str(get("~allocator", "paper")), number("period_s", 1.0, 0.05),
                       engine, number("service_timeout_s", 5.0, 0.1),
-                      number("stop_timeout_s", 20.0, 0.1), number("adopt_wait_s", 5.0))
+                      number("stop_timeout_s", 20.0, 0.1), number("adopt_wait_s", 5.0),
+                      number("stop_sigint_timeout_s", 0.5))
 
 
 class DecisionNode:
@@ -86,7 +88,8 @@ class DecisionNode:
         self.violating: List[str] = []
         self.watch_sent: Dict[str, tuple] = {}
         self.starting = set()                 # (node, scale) of starts not yet answered
-        self.agents = AgentClient(params.service_timeout_s, params.stop_timeout_s)
+        self.agents = AgentClient(params.service_timeout_s, params.stop_timeout_s,
+                                  params.stop_sigint_timeout_s)
         self.moves = Worker("anyscale_moves")
         self.scale_workers = {s: Worker(f"anyscale_{s}") for s in self.ch.scale_names}
         self.caller_id = rospy.get_name()
@@ -128,19 +131,38 @@ class DecisionNode:
             before = self.engine.mapping()
             result = self.engine.adopt_or_start(dict(self.reports), time.monotonic())
         self._dispatch(result, before, initial=True)
+        # The allocator acts on measured rates and loads: not before the paper's initial
+        # configuration runs (a node moved while the rest still imports is judged on nothing).
+        coming_up = {(a.node, a.scale) for a in result.actions if isinstance(a, StartNode)}
+        give_up_at = time.monotonic() + REGISTER_TIMEOUT_S
         rate = rospy.Rate(1.0 / self.params.period_s)
         while not rospy.is_shutdown():
             try:
                 rate.sleep()
             except rospy.ROSInterruptException:
                 break
+            if coming_up:
+                coming_up = self._initial_configuration_pending(coming_up, give_up_at)
             with self.lock:
                 before = self.engine.mapping()
-                result = self.engine.tick(dict(self.reports), time.monotonic())
+                result = self.engine.tick(dict(self.reports), time.monotonic(),
+                                          moves_allowed=not coming_up)
                 self.violating = result.violating
             self._dispatch(result, before)
             self._send_watch_lists()
             self.updater.update()
+
+    def _initial_configuration_pending(self, pending, give_up_at):
+        """The initial starts not yet reported RUNNING (none once give_up_at has passed)."""
+        pending = {(n, s) for n, s in pending if not self._agent_reports_running(s, n)}
+        if pending and time.monotonic() < give_up_at:
+            return pending
+        if pending:
+            rospy.logwarn("anyscale decision: %s not running after %.0f s; deciding anyway",
+                          ", ".join(sorted(n for n, _ in pending)), REGISTER_TIMEOUT_S)
+        else:
+            rospy.loginfo("anyscale decision: initial configuration running; deciding")
+        return set()
 
     def _wait_for_agents(self):
         """The master's agent must answer before anything can start; the others get
@@ -247,11 +269,12 @@ class DecisionNode:
         self._publish_event(event.kind, node, event.from_scale, scale, reason, stamp,
                             time.monotonic() - decided if registered else math.nan, registered)
 
-    def _agent_reports_running(self, scale, node, pid):
+    def _agent_reports_running(self, scale, node, pid=None):
         with self.lock:
             status = self.statuses.get(scale)
         return status is not None and any(
-            p.name == "/" + node and p.pid == pid and p.state == p.RUNNING for p in status.nodes)
+            p.name == "/" + node and pid in (None, p.pid) and p.state == p.RUNNING
+            for p in status.nodes)
 
     def _renew(self, action: RenewLeases):
         # A node whose start is still queued gets its lease from the start itself.

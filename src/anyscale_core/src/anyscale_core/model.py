@@ -53,6 +53,9 @@ class LaunchSpec:
     args: Tuple[str, ...] = ()
     remaps: Tuple[Tuple[str, str], ...] = ()
     params: Tuple[Tuple[str, Any], ...] = ()
+    # rospy nodes only: each agent keeps a pre-imported interpreter of this node ready where
+    # it does not run (agent README, "Warm standby"), so a move there skips the imports.
+    warm_start: bool = False
 
 
 @dataclass(frozen=True)
@@ -332,7 +335,7 @@ def _parse_launch(r: _Reader, value: Any, key: str) -> LaunchSpec:
     if value is None:
         r.fail(key, "missing: a node needs launch.package and launch.type to be started")
     d = r.mapping(value, key)
-    r.no_unknown_keys(d, ("package", "type", "args", "remaps", "params"), key)
+    r.no_unknown_keys(d, ("package", "type", "args", "remaps", "params", "warm_start"), key)
     package = r.string(r.require(d, "package", key), f"{key}.package", _PACKAGE_NAME,
                        "a ROS package name")
     exe = r.string(r.require(d, "type", key), f"{key}.type", _EXECUTABLE,
@@ -344,7 +347,8 @@ def _parse_launch(r: _Reader, value: Any, key: str) -> LaunchSpec:
     params = tuple(r.mapping(d.get("params", {}) or {}, f"{key}.params").items())
     for pname, _ in params:
         r.string(pname, f"{key}.params", _NODE_NAME, "a parameter name")
-    return LaunchSpec(package, exe, args, remaps, params)
+    return LaunchSpec(package, exe, args, remaps, params,
+                      r.boolean(d.get("warm_start", False), f"{key}.warm_start"))
 
 
 def _parse_handoff(r: _Reader, value: Any, key: str) -> Optional[StateHandoff]:

@@ -30,6 +30,7 @@ def scale_report_from_msg(msg, received_at: float, model_node_names: Iterable[st
     names = set(model_node_names)
     running = {model_node_name(p.name): float(p.cpu_percent) for p in msg.nodes
                if p.state in ALIVE_STATES and model_node_name(p.name) in names}
+    standby = sum(float(p.cpu_percent) for p in msg.nodes if p.state == NodeProcess.STANDBY)
     rates = {t.topic: effective_rate(float(t.rate_hz), float(t.last_message_age_s))
              for t in msg.topics}
     capacity = float(msg.cpu_quota_cores) if msg.cpu_quota_cores > 0 else float(msg.cores)
@@ -37,7 +38,7 @@ def scale_report_from_msg(msg, received_at: float, model_node_names: Iterable[st
     link_up = True if msg.is_master else bool(msg.link.up)
     bandwidth = math.nan if msg.is_master else float(msg.link.bandwidth_mbps)
     return ScaleReport(msg.scale, received_at, float(msg.cpu_percent), capacity, running,
-                       rates, link_up, bandwidth)
+                       rates, link_up, bandwidth, standby)
 
 
 def watched_topics(model: SystemModel, mapping: Mapping[str, str]) -> Dict[str, List[str]]:

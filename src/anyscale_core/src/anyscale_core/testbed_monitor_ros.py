@@ -5,7 +5,9 @@ end. It runs on the robot, so its receive times are what the robot's subscribers
 It also samples /proc for the processes of the model's nodes (the agents name them with
 `__name:=`) and their network namespace: on the one-machine test bed every scale's processes
 share one PID namespace, so two live instances of a node are visible even when the link
-between their scales is down and the master only knows one of them."""
+between their scales is down and the master only knows one of them. A warm standby (anyscale_agent_cpp's
+python_standby; comm "python_standby", then "standby:...") has the node's command line but has
+not contacted the master: it is no instance until the agent starts it."""
 import math
 import os
 import sys
@@ -29,6 +31,11 @@ EVENT_NAMES = {MigrationEvent.START: "start", MigrationEvent.MIGRATE: "migrate",
                MigrationEvent.FAILED: "failed"}
 
 
+# python_standby's comm from its exec until it renames itself, and while it waits.
+STANDBY_EXEC_COMM = b"python_standby"
+STANDBY_COMM_PREFIX = b"standby:"
+
+
 def say(line: str):
     """One line on stdout with the prefix the test-bed script echoes to the console."""
     print(f"[testbed] {line}", flush=True)
@@ -50,8 +57,11 @@ def node_processes(names, master_uri: str) -> Dict[str, List[str]]:
                 if ours not in f.read().split(b"\0"):
                     continue
             with open(f"/proc/{pid}/stat", "rb") as f:
-                if f.read().rsplit(b")", 1)[1].split()[0] == b"Z":
-                    continue            # a zombie publishes nothing
+                stat = f.read()
+            comm, state = stat.split(b"(", 1)[1].rsplit(b")", 1)
+            if state.split()[0] == b"Z" or comm == STANDBY_EXEC_COMM or \
+                    comm.startswith(STANDBY_COMM_PREFIX):
+                continue            # a zombie or a standby publishes nothing
             for a in args:
                 if a in wanted:
                     found[wanted[a]].append(os.readlink(f"/proc/{pid}/ns/net"))

@@ -9,7 +9,8 @@ from typing import Dict, List, Mapping, Optional, Sequence
 from .model import SystemModel
 
 STATE_NAMES = {0: "STARTING", 1: "RUNNING", 2: "STOPPING", 3: "EXITED", 4: "REPLACED",
-               5: "LEASE_EXPIRED"}
+               5: "LEASE_EXPIRED", 6: "STANDBY"}
+STANDBY = 6
 KIND_NAMES = {0: "START", 1: "MIGRATE", 2: "MIGRATE_BACK", 3: "ADOPT", 4: "FAILED"}
 
 
@@ -48,9 +49,13 @@ def render(statuses: Mapping[str, object], mapping, events: Sequence[object],
                    f"{_num(mem, '5.1f', '%'):>9}  {link:<5} {rtt:>8} {bw:>12}")
     out += ["", f"{'NODE':<20} {'SCALE':<10} {'STATE':<13} {'CPU':>7} {'RSS':>9} {'LEASE':>7}"]
     rows: Dict[str, List[str]] = {}
+    standbys: List[str] = []
     for scale in sorted(statuses):
         for p in statuses[scale].nodes:
             name = p.name.lstrip("/")
+            if p.state == STANDBY:
+                standbys.append(f"{name} on {scale} ({p.rss_bytes / 2**20:.0f} MB)")
+                continue
             if p.state not in (0, 1, 2) and name in rows:
                 continue     # an exited instance does not hide the live one
             lease = "-"
@@ -66,6 +71,8 @@ def render(statuses: Mapping[str, object], mapping, events: Sequence[object],
         want = assigned.get(name)
         where = r[1] if want in (None, r[1]) else f"{r[1]}>{want}"
         out.append(f"{r[0]:<20} {where:<10} {r[2]:<13} {r[3]:>7} {r[4]:>9} {r[5]:>7}")
+    if standbys:
+        out.append("warm standby: " + ", ".join(standbys))
     if model is not None:
         out += ["", f"{'CONNECTION':<40} {'RATE':>8} {'MIN':>6} {'OPT':>6}  STATUS"]
         for c in model.connections:

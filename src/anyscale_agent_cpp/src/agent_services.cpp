@@ -89,13 +89,13 @@ bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::S
     ROS_WARN("start_node %s", res.message.c_str());
     return true;
   }
-  std::string file_name = decl->name;
-  std::replace(file_name.begin(), file_name.end(), '/', '.');
-  const std::string log_file = log_dir_ + "/" + file_name + ".log";
+  const std::string log_file = logFile(decl->name);
   std::string error;
   // A warm standby becomes the node; if it died meanwhile, the node starts cold as usual.
-  const bool warm = isStandby(supervisor_.info(name)) && supervisor_.activate(name, &error) > 0;
-  const int pid = warm ? supervisor_.info(name)->pid : supervisor_.start(name, argv, log_file, &error);
+  int pid = isStandby(supervisor_.info(name)) ? supervisor_.activate(name, &error) : 0;
+  const bool warm = pid > 0;
+  if (!warm)
+    pid = supervisor_.start(name, argv, log_file, &error);
   if (pid <= 0)
   {
     res.message = "failed: " + name + ": " + error;
@@ -195,6 +195,13 @@ bool AgentNode::onRenew(anyscale_msgs::RenewLeases::Request& req, anyscale_msgs:
   return true;
 }
 
+std::string AgentNode::logFile(const std::string& node) const
+{
+  std::string file_name = node;
+  std::replace(file_name.begin(), file_name.end(), '/', '.');
+  return log_dir_ + "/" + file_name + ".log";
+}
+
 std::vector<std::string> AgentNode::standbyArgv(const NodeDecl& decl)
 {
   const PackageLocator locate = [this](const std::string& p) { return locatePackage(p); };
@@ -230,11 +237,10 @@ void AgentNode::keepStandbysReady()
     if (now < due)
       continue;
     due = now + kStandbyRetryS;  // a standby that dies by itself is not restarted in a loop
-    std::string file_name = node, error;
-    std::replace(file_name.begin(), file_name.end(), '/', '.');
+    std::string error;
     try
     {
-      const int pid = supervisor_.startStandby(name, standbyArgv(*decl), log_dir_ + "/" + file_name + ".log", &error);
+      const int pid = supervisor_.startStandby(name, standbyArgv(*decl), logFile(node), &error);
       if (pid > 0)
         ROS_INFO("warm standby of %s ready to start (pid %d)", name.c_str(), pid);
       else

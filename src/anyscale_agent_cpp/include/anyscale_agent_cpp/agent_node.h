@@ -55,6 +55,7 @@ private:
   // Warm standbys (agent_services.cpp): one per warm_start node that does not run here.
   void keepStandbysReady();
   std::vector<std::string> standbyArgv(const NodeDecl& decl);
+  std::string logFile(const std::string& node) const;  // <log_dir>/<name with '/' as '.'>.log
 
   std::vector<anyscale_msgs::NodeProcess> nodeProcesses();
   void diagnoseNodes(diagnostic_updater::DiagnosticStatusWrapper& stat);

@@ -37,30 +37,6 @@ bool groupExists(int pgid)
 }
 }  // namespace
 
-UniqueFd& UniqueFd::operator=(UniqueFd&& other) noexcept
-{
-  if (this != &other)
-  {
-    reset();
-    fd_ = other.release();
-  }
-  return *this;
-}
-
-int UniqueFd::release()
-{
-  const int fd = fd_;
-  fd_ = -1;
-  return fd;
-}
-
-void UniqueFd::reset()
-{
-  if (fd_ >= 0)
-    ::close(fd_);
-  fd_ = -1;
-}
-
 const char* toString(ProcState s)
 {
   switch (s)

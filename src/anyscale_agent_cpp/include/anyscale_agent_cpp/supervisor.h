@@ -13,6 +13,8 @@
 #include <thread>
 #include <vector>
 
+#include "anyscale_agent_cpp/unique_fd.h"
+
 namespace anyscale_agent
 {
 
@@ -55,25 +57,6 @@ struct SupervisorOptions
   // on the main thread, and a rospy talker caught in publish() that way was seen blocked on a
   // futex for good, ignoring even the master's shutdown request. 0 disables it.
   int parent_death_signal = SIGKILL;
-};
-
-// Owns a file descriptor: closed when destroyed or reset; movable, not copyable.
-class UniqueFd
-{
-public:
-  UniqueFd() = default;
-  explicit UniqueFd(int fd) : fd_(fd) {}
-  UniqueFd(UniqueFd&& other) noexcept : fd_(other.release()) {}
-  UniqueFd& operator=(UniqueFd&& other) noexcept;
-  UniqueFd(const UniqueFd&) = delete;
-  UniqueFd& operator=(const UniqueFd&) = delete;
-  ~UniqueFd() { reset(); }
-  int get() const { return fd_; }
-  int release();
-  void reset();
-
-private:
-  int fd_ = -1;
 };
 
 class Supervisor

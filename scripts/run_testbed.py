@@ -137,6 +137,7 @@ def main(argv=None) -> int:
                 "anyscale_nav_demo", "anyscale_robot.launch", f"world:={args.world}",
                 f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}",
                 f"allocator:={args.allocator}", f"hysteresis_s:={args.hysteresis}",
+                f"uplink_interface:={bed.uplink_interface('robot')}",
                 f"warm_start:={str(not args.cold_start).lower()}"])
             session.roslaunch("laptop", "laptop", [
                 "anyscale_nav_demo", "laptop.launch", f"model:={model}",

@@ -14,6 +14,7 @@ moment, so their ratio is the figure to read. Run with the workspace sourced:
 """
 import argparse
 import glob
+import math
 import os
 import statistics
 import subprocess
@@ -22,8 +23,8 @@ import tempfile
 import threading
 import time
 
-from anyscale_core.testbed_record import (TestbedRecord, first_after, link_transitions,
-                                          move_figures)
+from anyscale_core.testbed_record import (TestbedRecord, link_transitions, move_figures,
+                                          reaction_s)
 from anyscale_core.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
 from anyscale_core.two_scale_testbed import missing_capabilities
 
@@ -37,7 +38,7 @@ def cycle_schedule(cycles: int, up_s: float, down_s: float):
         steps += [[t, 27], [t + up_s, 0]]
         t += up_s + down_s
     steps.append([t, 27])
-    return steps, t + 10.0
+    return steps, t + 20.0          # the last move out (after T) is seen to its end
 
 
 class ProcessCpu(threading.Thread):
@@ -104,7 +105,8 @@ def run_relay(cycles, up_s, down_s, out):
         robot = session.roslaunch("robot", "relay_robot", [
             os.path.join(ROOT, "tests", "system", "relay_robot.launch"), f"model:={model}",
             f"schedule:={steps}", f"record_path:={record}", f"duration_s:={duration}",
-            "hysteresis_s:=5.0"], wait_for_master=False)
+            "hysteresis_s:=5.0", f"uplink_interface:={bed.uplink_interface('robot')}"],
+            wait_for_master=False)
         session.roslaunch("laptop", "relay_laptop", [
             "anyscale_agent_cpp", "agent.launch", "scale:=laptop", "master_scale:=robot",
             f"model:={model}", "sample_rate_hz:=5.0", "sigint_timeout_s:=2.0"])
@@ -113,18 +115,22 @@ def run_relay(cycles, up_s, down_s, out):
 
 
 def node_figures(rec: TestbedRecord, outputs):
-    """{node: (planned gaps, link-loss gaps, reactions)} in seconds."""
+    """{node: (planned gaps, link-loss gaps, reactions)} in seconds; a move the run did not see
+    to its end is left out."""
     downs = [t for t, up in link_transitions(rec.bandwidth) if not up]
     out = {}
     for f in move_figures(rec, outputs):
         planned, lost, reaction = out.setdefault(f.event.node, ([], [], []))
+        if math.isnan(f.output_gap_s):
+            continue
         if f.event.kind == "migrate":
             planned.append(f.output_gap_s)
         elif "down" in f.event.reason:
             lost.append(f.output_gap_s)
             down = max((t for t in downs if t <= f.event.decided_t), default=None)
             if down is not None:
-                reaction.append(first_after(rec.receipts[outputs[f.event.node]], down))
+                reaction.append(reaction_s(rec.receipts[outputs[f.event.node]], down,
+                                           f.event.decided_t))
     return out
 
 

@@ -7,7 +7,7 @@ import subprocess
 import pytest
 
 from anyscale_core.testbed_record import (TestbedRecord, duplicate_instances, first_after,
-                                          longest_gap, mapping_at)
+                                          link_transitions, longest_gap, mapping_at)
 from anyscale_core.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
 from anyscale_core.two_scale_testbed import missing_capabilities
 
@@ -17,7 +17,6 @@ pytestmark = pytest.mark.skipif(bool(MISSING), reason="the two-scale test bed ne
                                 "; ".join(MISSING))
 
 SCHEDULE = "[[0, 27], [15, 0], [21, 27]]"
-DOWN_AT, UP_AT = 15.0, 21.0
 HYSTERESIS_S = 5.0
 DURATION_S = 35.0
 RELAY_TOLERANCE_S = 2.0        # relay_model.yaml
@@ -38,7 +37,8 @@ def run(tmp_path_factory):
         robot = session.roslaunch("robot", "robot", [
             os.path.join(HERE, "relay_robot.launch"), f"model:={model}",
             f"schedule:={SCHEDULE}", f"record_path:={record}", f"duration_s:={DURATION_S}",
-            f"hysteresis_s:={HYSTERESIS_S}"], wait_for_master=False)
+            f"hysteresis_s:={HYSTERESIS_S}",
+            f"uplink_interface:={bed.uplink_interface('robot')}"], wait_for_master=False)
         session.roslaunch("laptop", "laptop", [
             "anyscale_agent_cpp", "agent.launch", "scale:=laptop", "master_scale:=robot",
             f"model:={model}", "sample_rate_hz:=5.0", "sigint_timeout_s:=2.0"])
@@ -48,31 +48,43 @@ def run(tmp_path_factory):
     return TestbedRecord.load(record)
 
 
-def test_the_relay_moves_out_comes_back_on_link_loss_and_goes_out_after_t(run):
+@pytest.fixture(scope="module")
+def link_times(run):
+    """(down, up) on the record's clock: the schedule shifted by when the shaper started."""
+    transitions = link_transitions(run.bandwidth)
+    assert [up for _, up in transitions] == [False, True], transitions
+    return transitions[0][0], transitions[1][0]
+
+
+def test_the_relay_moves_out_comes_back_on_link_loss_and_goes_out_after_t(run, link_times):
+    down_at, up_at = link_times
     relay = [e for e in run.events if e.node == "relay" and e.success]
     kinds = [(e.kind, e.to_scale) for e in relay if e.kind != "start"]
     assert kinds[:3] == [("migrate", "laptop"), ("migrate_back", "robot"),
                          ("migrate", "laptop")], kinds
     out, back, again = relay[1:4] if relay[0].kind == "start" else relay[:3]
-    assert out.decided_t < DOWN_AT and DOWN_AT <= back.decided_t < UP_AT
+    assert out.decided_t < down_at and down_at <= back.decided_t < up_at
     assert "down" in back.reason
-    assert again.decided_t >= max(UP_AT, back.decided_t + HYSTERESIS_S) - 0.01
-    assert mapping_at(run, DOWN_AT - 1.0)["relay"] == "laptop"
+    assert back.decided_t - down_at < 0.5          # the veth's carrier, not a status timeout
+    assert again.decided_t >= max(up_at, back.decided_t + HYSTERESIS_S) - 0.01
+    assert mapping_at(run, down_at - 1.0)["relay"] == "laptop"
     # Where it ran is where its process was: the robot and laptop namespaces differ.
     spaces = {ns for s in run.processes for ns in s.instances["relay"]}
     assert len(spaces) == 2
 
 
-def test_the_relays_output_never_goes_silent_longer_than_its_tolerance(run):
+def test_the_relays_output_never_goes_silent_longer_than_its_tolerance(run, link_times):
+    down_at = link_times[0]
     times = run.receipts["/chatter_relay"]
     assert times, "no /chatter_relay received on the robot"
     assert longest_gap(times, times[0], run.finished_t) <= RELAY_TOLERANCE_S
-    assert first_after(times, DOWN_AT) < RELAY_TOLERANCE_S
+    assert first_after(times, down_at) < RELAY_TOLERANCE_S
 
 
-def test_one_relay_instance_while_the_link_is_up_also_after_the_partition_heals(run):
+def test_one_relay_instance_while_the_link_is_up_also_after_the_partition_heals(run, link_times):
+    up_at = link_times[1]
     assert duplicate_instances(run.processes, ["relay"]) == []
-    healed = [s for s in run.processes if s.t > UP_AT]
+    healed = [s for s in run.processes if s.t > up_at]
     assert healed and all(len(s.instances["relay"]) <= 1 for s in healed)
     assert len(healed[-1].instances["relay"]) == 1
     for t, publishers in run.master_publishers:

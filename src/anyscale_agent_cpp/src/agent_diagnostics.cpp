@@ -41,8 +41,12 @@ void AgentNode::diagnoseLink(diagnostic_updater::DiagnosticStatusWrapper& stat)
 {
   std::lock_guard<std::mutex> lock(sample_mutex_);
   const auto& l = last_status_.link;
-  if (is_master_)
-    stat.summary(diagnostic_msgs::DiagnosticStatus::OK, "master scale: no link to measure");
+  if (!l.carrier)
+    stat.summaryf(diagnostic_msgs::DiagnosticStatus::ERROR, "uplink %s has no carrier", l.uplink_interface.c_str());
+  else if (is_master_)
+    stat.summary(diagnostic_msgs::DiagnosticStatus::OK, l.uplink_interface.empty() ?
+                                                            "master scale: no link to measure" :
+                                                            "master scale: uplink has a carrier");
   else if (!l.up)
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "link to the master scale is down");
   else
@@ -52,6 +56,8 @@ void AgentNode::diagnoseLink(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("rtt_mean_s", l.rtt_mean_s);
   stat.add("loss_ratio", l.loss_ratio);
   stat.add("bandwidth_mbps", l.bandwidth_mbps);
+  stat.add("uplink_interface", l.uplink_interface);
+  stat.add("carrier", bool(l.carrier));
 }
 
 void AgentNode::diagnoseTopics(diagnostic_updater::DiagnosticStatusWrapper& stat)

@@ -9,6 +9,9 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include "anyscale_agent_cpp/process_priority.h"
+#include "anyscale_agent_cpp/uplink_carrier.h"
+
 namespace anyscale_agent
 {
 namespace
@@ -93,6 +96,11 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   sample_period_s_ = 1.0 / positive(pnh_, "sample_rate_hz", 2.0);
   warm_start_ = param(pnh_, "warm_start", true);
   standby_delay_s_ = positive(pnh_, "standby_delay_s", standby_delay_s_);
+  start_boost_nice_ = param(pnh_, "start_boost_nice", 0);
+  if (start_boost_nice_ < -20 || start_boost_nice_ > 0)
+    throw std::runtime_error("parameter ~start_boost_nice must be a nice value from -20 to 0 (0: no boost), got " +
+                             std::to_string(start_boost_nice_));
+  start_boost_s_ = positive(pnh_, "start_boost_s", start_boost_s_);
 
   topics_ = std::make_unique<TopicWatcher>(nh_, positive(pnh_, "rate_window_s", 2.0),
                                            std::max(1, param(pnh_, "topic_queue_size", 50)),
@@ -123,6 +131,24 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   supervise_timer_ = supervise_nh.createSteadyTimer(ros::WallDuration(0.1), &AgentNode::onSupervise, this);
   graph_timer_ = graph_nh.createSteadyTimer(ros::WallDuration(positive(pnh_, "graph_period_s", 1.0)),
                                             &AgentNode::onGraph, this);
+  uplink_interface_ = param<std::string>(pnh_, "uplink_interface", "");
+  if (!uplink_interface_.empty())
+  {
+    const Carrier carrier = readCarrier(uplink_interface_);
+    if (carrier == Carrier::Missing)
+    {
+      std::string have;
+      for (const auto& name : interfaceNames())
+        have += (have.empty() ? "" : ", ") + name;
+      throw std::runtime_error("parameter ~uplink_interface: no interface '" + uplink_interface_ +
+                               "' in this network namespace (it has: " + have + ")");
+    }
+    uplink_up_ = carrier == Carrier::Up;
+    ROS_INFO("watching the carrier of uplink %s (now %s)", uplink_interface_.c_str(), toString(carrier));
+    // On the supervision thread: a file read every period, never blocked by a master query.
+    uplink_timer_ = supervise_nh.createSteadyTimer(
+        ros::WallDuration(positive(pnh_, "uplink_poll_period_s", 0.05)), &AgentNode::onUplink, this);
+  }
 
   diagnostics_.setHardwareID(scale_);
   diagnostics_.add("nodes", this, &AgentNode::diagnoseNodes);
@@ -140,6 +166,7 @@ AgentNode::~AgentNode()
   sample_timer_.stop();
   supervise_timer_.stop();
   graph_timer_.stop();
+  uplink_timer_.stop();
   supervisor_.stopAll();
 }
 
@@ -170,6 +197,7 @@ std::string AgentNode::locatePackage(const std::string& package) const
 void AgentNode::onSupervise(const ros::SteadyTimerEvent&)
 {
   supervisor_.poll();
+  endBoosts();
   std::vector<std::string> expired;
   {
     std::lock_guard<std::mutex> lock(leases_mutex_);
@@ -217,6 +245,71 @@ void AgentNode::onGraph(const ros::SteadyTimerEvent&)
   }
   if (const auto local = graph_.localSubscribedTopics(own))
     topics_->update(*local);
+}
+
+void AgentNode::boostStart(const std::string& name, int pid)
+{
+  if (start_boost_nice_ == 0)
+    return;
+  std::string error;
+  if (!setProcessNice(pid, start_boost_nice_, &error))
+  {
+    ROS_WARN_ONCE("cannot give started nodes nice %d for their first %.1f s (%s): ~start_boost_nice ignored",
+                  start_boost_nice_, start_boost_s_, error.c_str());
+    return;
+  }
+  std::lock_guard<std::mutex> lock(boost_mutex_);
+  boosted_[name] = { pid, steadyNow() + start_boost_s_ };
+}
+
+void AgentNode::endBoosts()
+{
+  std::lock_guard<std::mutex> lock(boost_mutex_);
+  const double now = steadyNow();
+  for (auto it = boosted_.begin(); it != boosted_.end();)
+  {
+    const auto [pid, until] = it->second;
+    if (now < until)
+    {
+      ++it;
+      continue;
+    }
+    const auto info = supervisor_.info(it->first);
+    std::string error;
+    if (info && info->pid == pid && !setProcessNice(pid, 0, &error))
+      ROS_WARN("%s: could not end its start priority: %s", it->first.c_str(), error.c_str());
+    it = boosted_.erase(it);
+  }
+}
+
+void AgentNode::onUplink(const ros::SteadyTimerEvent&)
+{
+  const Carrier carrier = readCarrier(uplink_interface_);
+  const bool up = carrier == Carrier::Up;
+  if (up == uplink_up_.exchange(up))
+    return;
+  if (up)
+    ROS_INFO("uplink %s has a carrier again", uplink_interface_.c_str());
+  else
+    ROS_WARN("uplink %s lost its carrier (%s): the other scales are out of reach", uplink_interface_.c_str(),
+             toString(carrier));
+  // At once, not at the next sample: the decision node brings remote nodes home on this.
+  anyscale_msgs::ScaleStatus s;
+  {
+    std::lock_guard<std::mutex> lock(sample_mutex_);
+    if (last_status_.scale.empty())
+      return;  // nothing sampled yet; the first sample carries the state
+    applyUplink(last_status_.link);
+    s = last_status_;
+  }
+  status_pub_.publish(s);
+}
+
+void AgentNode::applyUplink(anyscale_msgs::LinkStatistics& link) const
+{
+  link.uplink_interface = uplink_interface_;
+  link.carrier = uplink_up_;
+  link.up = link.up && link.carrier;
 }
 
 std::vector<anyscale_msgs::NodeProcess> AgentNode::nodeProcesses()
@@ -274,6 +367,7 @@ void AgentNode::onSample(const ros::SteadyTimerEvent&)
     s.nodes = nodeProcesses();
     s.topics = topics_->stats(s.header.stamp);
     s.link = link_->stats();
+    applyUplink(s.link);
     last_status_ = s;
   }
   status_pub_.publish(s);

@@ -2,7 +2,9 @@
 #include "anyscale_agent_cpp/agent_node.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdlib>
 #include <fstream>
 #include <limits>
@@ -102,6 +104,7 @@ bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::S
     ROS_ERROR("start_node %s", res.message.c_str());
     return true;
   }
+  boostStart(name, pid);
   {
     std::lock_guard<std::mutex> lock(leases_mutex_);
     leases_.grant(name, steadyNow(), req.lease_s);
@@ -142,6 +145,7 @@ bool AgentNode::onStop(anyscale_msgs::StopNode::Request& req, anyscale_msgs::Sto
     res.message = "refused: sigint_timeout_s must be >= 0 seconds, got " + std::to_string(req.sigint_timeout_s);
     return true;
   }
+  const auto stop_began = std::chrono::steady_clock::now();
   supervisor_.stop(name, ProcState::Exited, req.sigint_timeout_s);
   if (!req.wait)
   {
@@ -150,7 +154,21 @@ bool AgentNode::onStop(anyscale_msgs::StopNode::Request& req, anyscale_msgs::Sto
     return true;
   }
   const auto& o = supervisor_.options();
-  const bool gone = supervisor_.waitGone(name, o.sigint_timeout_s + o.sigterm_timeout_s + 5.0);
+  const double limit = o.sigint_timeout_s + o.sigterm_timeout_s + 5.0;
+  // A migration waits for the node to leave the master's system state, not for its threads:
+  // a rospy node unregisters its topics and services early in its shutdown (after its
+  // on_shutdown hooks), then spends half a second or more joining threads, all of it dead
+  // time on its topics. Only a node seen registered counts: one still starting could
+  // register after the check.
+  bool left_master = false;
+  if (req.sigint_timeout_s > 0.0f && before->state == ProcState::Running)
+    while (!supervisor_.waitGone(name, 0.03) && std::chrono::steady_clock::now() - stop_began < std::chrono::duration<double>(limit))
+      if (!graph_.inSystemState(name))
+      {
+        left_master = supervisor_.killNow(name);
+        break;
+      }
+  const bool gone = supervisor_.waitGone(name, limit);
   const auto after = supervisor_.info(name);
   res.success = gone;
   if (after)
@@ -159,6 +177,12 @@ bool AgentNode::onStop(anyscale_msgs::StopNode::Request& req, anyscale_msgs::Sto
     res.exit_signal = after->exit_signal;
   }
   res.message = gone ? "stopped " + name : "stop of " + name + " did not finish in time";
+  if (gone)
+    ROS_INFO("stopped %s (pid %d) in %.2f s%s", name.c_str(), before->pid,
+             std::chrono::duration<double>(std::chrono::steady_clock::now() - stop_began).count(),
+             left_master                  ? ": killed once it had left the master" :
+             res.exit_signal == SIGKILL ? ": killed after the SIGINT grace" :
+                                          "");
   return true;
 }
 

@@ -58,6 +58,22 @@ std::optional<GraphMonitor::Registration> GraphMonitor::lookup(const std::string
   return r;
 }
 
+bool GraphMonitor::inSystemState(const std::string& node) const
+{
+  XmlRpc::XmlRpcValue args, result, payload;
+  args[0] = ros::this_node::getName();
+  if (!ros::master::execute("getSystemState", args, result, payload, false) ||
+      payload.getType() != XmlRpc::XmlRpcValue::TypeArray || payload.size() < 3)
+    return true;
+  // payload: [publishers, subscribers, services], each a list of [name, [node, ...]].
+  for (int kind = 0; kind < 3; ++kind)
+    for (int i = 0; i < payload[kind].size(); ++i)
+      for (int j = 0; j < payload[kind][i][1].size(); ++j)
+        if (std::string(payload[kind][i][1][j]) == node)
+          return true;
+  return false;
+}
+
 std::optional<std::set<std::string>> GraphMonitor::localSubscribedTopics(const std::set<std::string>& own_nodes) const
 {
   XmlRpc::XmlRpcValue args, result, payload;

@@ -288,6 +288,17 @@ bool Supervisor::stop(const std::string& name, ProcState final_state, double kil
   return true;
 }
 
+bool Supervisor::killNow(const std::string& name)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = records_.find(name);
+  if (it == records_.end() || !isAlive(it->second) || !it->second.info.stop_requested)
+    return false;
+  it->second.group.stage = 2;  // the next escalation is SIGKILL
+  escalate(it->second.group, Clock::now());
+  return true;
+}
+
 void Supervisor::escalate(Group& g, Clock::time_point now)
 {
   if (g.stage == 0)

@@ -180,6 +180,26 @@ TEST(Supervisor, ShortGraceGoesFromSigintStraightToSigkill)
   EXPECT_TRUE(waitUntil([&] { return groupGone(pid); }, 5.0, s));
 }
 
+TEST(Supervisor, KillNowCutsAStopShortButOnlyAStop)
+{
+  Supervisor s;
+  std::string err;
+  const int pid = s.start("lingering", sh("trap '' INT TERM; while :; do sleep 0.05; done"), tempLog("linger"), &err);
+  ASSERT_GT(pid, 0) << err;
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  EXPECT_FALSE(s.killNow("lingering"));  // not being stopped: left alone
+  EXPECT_FALSE(s.killNow("unknown"));
+  ASSERT_TRUE(s.stop("lingering", ProcState::Exited, 30.0));
+  const auto t0 = Clock::now();
+  ASSERT_TRUE(s.killNow("lingering"));
+  ASSERT_TRUE(s.waitGone("lingering", 10.0));
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - t0).count(), 1.5);  // not the 30 s grace
+  const auto info = s.info("lingering").value();
+  EXPECT_EQ(info.exit_signal, SIGKILL);
+  EXPECT_EQ(info.state, ProcState::Exited);
+  EXPECT_TRUE(waitUntil([&] { return groupGone(pid); }, 5.0, s));
+}
+
 TEST(Supervisor, ExpiredLeaseKillsAtOnceWithoutTheGracefulStages)
 {
   Supervisor s;  // roslaunch's 15 s + 2 s grace: a lease end must not wait for them

@@ -80,6 +80,18 @@ def test_link_loss_brings_both_back_without_talking_to_the_laptop(engine):
     assert not any(isinstance(a, RenewLeases) for a in result.actions)
 
 
+def test_uplink_carrier_loss_on_the_robot_brings_both_back_at_once(engine):
+    for t in (1.0, 2.0):
+        engine.tick(reports(t), t)
+    # The laptop's last report is still fresh, but the robot's uplink has no carrier.
+    now = reports(2.1)
+    robot = dataclasses.replace(now["robot"], link_up=False)
+    result = engine.tick({**now, "robot": robot}, 2.1)
+    assert remote(engine) == []
+    assert all(a.scale == "robot" for a in result.actions)
+    assert {e.reason for e in result.events} == {"link to laptop down"}
+
+
 def test_restored_link_moves_out_again_only_after_t(engine):
     for t in (1.0, 2.0):
         engine.tick(reports(t), t)

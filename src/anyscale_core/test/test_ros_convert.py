@@ -43,11 +43,15 @@ def test_scale_report_keeps_live_model_nodes_and_effective_rates():
     assert r.link_up and r.bandwidth_mbps == 12.5
 
 
-def test_scale_report_uses_the_quota_and_the_master_link_is_always_up():
+def test_scale_report_uses_the_quota_and_the_masters_link_is_its_uplink_carrier():
     msg = status("robot", True, cpu_quota_cores=1.5)
-    msg.link = LinkStatistics(up=False, bandwidth_mbps=float("nan"))
+    msg.link = LinkStatistics(up=True, bandwidth_mbps=float("nan"), carrier=True)
     r = conv.scale_report_from_msg(msg, 0.0, [])
     assert r.capacity_cores == 1.5 and r.link_up and math.isnan(r.bandwidth_mbps)
+    msg.link = LinkStatistics(up=False, bandwidth_mbps=12.0, uplink_interface="wlan0",
+                              carrier=False)
+    r = conv.scale_report_from_msg(msg, 0.0, [])
+    assert not r.link_up and math.isnan(r.bandwidth_mbps)
     down = conv.scale_report_from_msg(status(link=LinkStatistics(up=False)), 0.0, [])
     assert not down.link_up
 

@@ -12,6 +12,7 @@
 #include <anyscale_msgs/StartNode.h>
 #include <anyscale_msgs/StopNode.h>
 
+#include <atomic>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -51,6 +52,10 @@ private:
   void onSample(const ros::SteadyTimerEvent&);      // /proc, topics, link -> /anyscale/status
   void onSupervise(const ros::SteadyTimerEvent&);   // reaping, signal escalation, lease expiry
   void onGraph(const ros::SteadyTimerEvent&);       // master queries: registration, local topics
+  void onUplink(const ros::SteadyTimerEvent&);      // carrier of ~uplink_interface; status on change
+  void applyUplink(anyscale_msgs::LinkStatistics& link) const;
+  void boostStart(const std::string& name, int pid);  // see ~start_boost_nice
+  void endBoosts();                                   // on the supervision thread
 
   // Warm standbys (agent_services.cpp): one per warm_start node that does not run here.
   void keepStandbysReady();
@@ -75,6 +80,12 @@ private:
   bool warm_start_ = true;          // ~warm_start: false ignores the model's launch.warm_start
   double standby_delay_s_ = 2.0;    // a node's standby is prepared this long after it stopped
   std::map<std::string, double> standby_due_;  // node -> steady time its standby may start
+  int start_boost_nice_ = 0;         // ~start_boost_nice: a started node's nice for its first seconds
+  double start_boost_s_ = 3.0;      // ~start_boost_s
+  std::map<std::string, std::pair<int, double>> boosted_;  // node -> (pid, steady time it ends)
+  std::mutex boost_mutex_;
+  std::string uplink_interface_;    // ~uplink_interface: whose carrier loss cuts the other scales off
+  std::atomic<bool> uplink_up_{ true };
 
   NodeModel model_;
   Supervisor supervisor_;
@@ -92,7 +103,7 @@ private:
   ros::CallbackQueue supervise_queue_, graph_queue_;
   ros::Publisher status_pub_;
   std::vector<ros::ServiceServer> services_;
-  ros::SteadyTimer sample_timer_, supervise_timer_, graph_timer_;
+  ros::SteadyTimer sample_timer_, supervise_timer_, graph_timer_, uplink_timer_;
   diagnostic_updater::Updater diagnostics_;
 };
 

@@ -28,6 +28,11 @@ public:
   };
   // The process the master lists under `node` (fully qualified); nullopt if not registered.
   std::optional<Registration> lookup(const std::string& node) const;
+  // Whether `node` publishes, subscribes to or serves anything in the master's system state.
+  // (lookupNode is no test of that: the master keeps a node with a parameter subscription,
+  // and rospy's rosout subscribes to one that is never dropped.) True if the master cannot
+  // be asked.
+  bool inSystemState(const std::string& node) const;
 
   const std::string& host() const { return host_; }
 

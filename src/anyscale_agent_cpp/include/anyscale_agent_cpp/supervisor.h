@@ -89,6 +89,10 @@ public:
   // False if `name` is not alive.
   bool stop(const std::string& name, ProcState final_state = ProcState::Exited, double kill_after_s = 0.0);
 
+  // SIGKILL now for a node whose stop is under way, when its clean shutdown went far enough
+  // (e.g. it left the master). False if `name` is not alive or not being stopped.
+  bool killNow(const std::string& name);
+
   // Waits until `name` is no longer alive, polling itself; false on timeout.
   bool waitGone(const std::string& name, double timeout_s);
 

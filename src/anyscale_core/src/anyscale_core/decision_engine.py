@@ -36,7 +36,7 @@ class ScaleReport:
     capacity_cores: float                        # cores, or the cgroup quota in cores
     running: Mapping[str, float] = field(default_factory=dict)  # node -> CPU % of one core
     topic_rates: Mapping[str, float] = field(default_factory=dict)  # topic -> effective Hz
-    link_up: bool = True
+    link_up: bool = True                         # the master's: its uplink has a carrier
     bandwidth_mbps: float = math.nan             # measured estimate; NaN = not yet measured
     standby_cpu: float = 0.0                     # warm standbys' CPU, % of one core
 
@@ -197,11 +197,15 @@ class DecisionEngine:
     def dynamic_state(self, reports: Mapping[str, ScaleReport], now: float) -> DynamicState:
         master = self.ch.scale_names[self.ch.master]
         link_up, loads, estimates = {}, {}, []
+        # The master's uplink without carrier cuts every remote scale off at once; their own
+        # reports would only say so after status_timeout_s of silence.
+        master_report = reports.get(master)
+        uplink = master_report is None or master_report.link_up
         for k, scale in enumerate(self.ch.scale_names):
             report = reports.get(scale)
             fresh = report is not None and now - report.received_at <= self.params.status_timeout_s
             if scale != master:
-                link_up[scale] = bool(fresh and report.link_up)
+                link_up[scale] = bool(fresh and report.link_up and uplink)
                 if fresh and math.isfinite(report.bandwidth_mbps):
                     estimates.append(report.bandwidth_mbps)
             if report is not None:

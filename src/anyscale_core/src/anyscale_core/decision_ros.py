@@ -83,6 +83,7 @@ class DecisionNode:
         self.master = self.model.master.name
         self.engine = DecisionEngine(self.ch, allocator, params.engine, time.monotonic())
         self.lock = threading.Lock()          # the engine and the reports, across threads
+        self.wake = threading.Event()         # set: tick now, a link was lost
         self.reports: Dict[str, object] = {}
         self.statuses: Dict[str, ScaleStatus] = {}
         self.violating: List[str] = []
@@ -116,8 +117,11 @@ class DecisionNode:
             return
         report = conv.scale_report_from_msg(msg, time.monotonic(), self.ch.node_names)
         with self.lock:
+            before = self.reports.get(msg.scale)
             self.reports[msg.scale] = report
             self.statuses[msg.scale] = msg
+        if before is not None and before.link_up and not report.link_up:
+            self.wake.set()         # a link lost (e.g. the uplink's carrier): decide now
 
     def _on_pose(self, msg, node):
         params = conv.handoff_params_from_pose(msg)
@@ -135,12 +139,9 @@ class DecisionNode:
         # configuration runs (a node moved while the rest still imports is judged on nothing).
         coming_up = {(a.node, a.scale) for a in result.actions if isinstance(a, StartNode)}
         give_up_at = time.monotonic() + REGISTER_TIMEOUT_S
-        rate = rospy.Rate(1.0 / self.params.period_s)
+        next_tick = time.monotonic()
         while not rospy.is_shutdown():
-            try:
-                rate.sleep()
-            except rospy.ROSInterruptException:
-                break
+            next_tick = self._wait_for_tick(next_tick + self.params.period_s)
             if coming_up:
                 coming_up = self._initial_configuration_pending(coming_up, give_up_at)
             with self.lock:
@@ -151,6 +152,14 @@ class DecisionNode:
             self._dispatch(result, before)
             self._send_watch_lists()
             self.updater.update()
+
+    def _wait_for_tick(self, due: float) -> float:
+        """Sleeps until `due` or an early wake-up; returns the time this tick counts from."""
+        if self.wake.wait(max(0.0, due - time.monotonic())):
+            self.wake.clear()
+            return time.monotonic()
+        # A tick that took longer than a period does not make the next ones come in a burst.
+        return max(due, time.monotonic() - self.params.period_s)
 
     def _initial_configuration_pending(self, pending, give_up_at):
         """The initial starts not yet reported RUNNING (none once give_up_at has passed)."""

@@ -90,6 +90,14 @@ def first_after(times: Sequence[float], moment: float) -> float:
     return ordered[i] - moment if i < len(ordered) else math.inf
 
 
+def reaction_s(times: Sequence[float], down: float, decided: float) -> float:
+    """Link down -> the first message on the node's output after the move back was decided
+    (inf if none). Messages before the decision are the remote instance's: in flight when the
+    link went, or sent in the few ms between the shaper's record of the change and the link
+    going down."""
+    return max(decided, down) - down + first_after(times, max(decided, down))
+
+
 def pose_errors(truth: Sequence[Tuple[float, float, float]],
                 estimate: Sequence[Tuple[float, float, float]]) -> np.ndarray:
     """Position error of each estimate against the ground truth interpolated at its time."""
@@ -139,21 +147,24 @@ MOVE_SETTLE_S = 3.0
 @dataclass(frozen=True)
 class MoveFigures:
     event: EventRecord
-    output_gap_s: float        # the longest silence on the node's output topic during the move
+    output_gap_s: float        # the longest silence on the node's output topic during the move;
+                               # NaN if the run ended before the move's window did
     first_output_s: float      # decision -> first message on the output topic afterwards
 
 
 def move_figures(rec: TestbedRecord, outputs: Dict[str, str]) -> List[MoveFigures]:
     """For every migration of a node with a known output topic: the gap its subscriber saw."""
     out = []
+    end = rec.finished_t if rec.finished_t is not None else _last_time(rec)
     for e in rec.events:
         topic = outputs.get(e.node)
         if e.kind not in ("migrate", "migrate_back") or topic is None:
             continue
         times = rec.receipts.get(topic, [])
         settled = e.decided_t + (e.duration_s if math.isfinite(e.duration_s) else 0.0)
-        out.append(MoveFigures(e, gap_during(times, e.decided_t, settled + MOVE_SETTLE_S),
-                               first_after(times, e.decided_t)))
+        window_end = settled + MOVE_SETTLE_S
+        gap = gap_during(times, e.decided_t, window_end) if window_end <= end else math.nan
+        out.append(MoveFigures(e, gap, first_after(times, e.decided_t)))
     return out
 
 

@@ -49,6 +49,10 @@ class LoopbackBed:
     def address(self, scale: str) -> str:
         return "localhost"
 
+    def uplink_interface(self, scale: str) -> str:
+        return ""               # loopback: no interface of the link to watch
+
+
     def start(self, scale, argv, env=None, log_path=None, cpu_quota=True, stdout=None):
         proc = start_session(argv, env, log_path, stdout)
         self.processes.append(proc)
@@ -64,6 +68,10 @@ class NamespaceBed(TwoScaleTestbed):
 
     def address(self, scale: str) -> str:
         return self.end(scale).address
+
+    def uplink_interface(self, scale: str) -> str:
+        """The scale's end of the veth: its carrier goes when the link is taken down."""
+        return self.end(scale).interface
 
 
 def layout_with_cpu(robot_cores: float, laptop_cores: float,

@@ -206,11 +206,13 @@ void AgentNode::onSupervise(const ros::SteadyTimerEvent&)
   for (const auto& name : expired)
     if (supervisor_.stop(name, ProcState::LeaseExpired))
       ROS_WARN("lease of %s expired: stopping it", name.c_str());
+  // Here, not with the master queries: a standby is most needed right after a partition, when
+  // those queries hang on the unreachable master.
+  keepStandbysReady();
 }
 
 void AgentNode::onGraph(const ros::SteadyTimerEvent&)
 {
-  keepStandbysReady();
   std::set<std::string> own;
   for (const auto& p : supervisor_.snapshot())
   {

@@ -130,6 +130,11 @@ def test_start_carries_the_last_pose(engine):
     start = engine.tick(reports(1.0), 1.0).actions[1]
     assert dict(start.param_overrides)["initial_pose_x"] == 3.0
     assert dict(start.param_overrides)["initial_pose_a"] == 1.5
+    # The wrapper stops a move's old instance after its next pose and starts the new one
+    # from that newer pose, asked here again.
+    engine.observe_handoff("amcl", pose_handoff_params(3.2, 4.0, 1.5, 0.1, 0.1, 0.05))
+    assert dict(engine.handoff_overrides("amcl"))["initial_pose_x"] == 3.2
+    assert engine.handoff_overrides("ar_recognition") == ()       # no state_handoff
 
 
 def test_failed_remote_start_returns_the_node_and_holds_it(engine):

@@ -50,7 +50,7 @@ private:
 
   // Timers (agent_node.cpp).
   void onSample(const ros::SteadyTimerEvent&);      // /proc, topics, link -> /anyscale/status
-  void onSupervise(const ros::SteadyTimerEvent&);   // reaping, signal escalation, lease expiry
+  void onSupervise(const ros::SteadyTimerEvent&);   // reaping, signal escalation, leases, standbys
   void onGraph(const ros::SteadyTimerEvent&);       // master queries: registration, local topics
   void onUplink(const ros::SteadyTimerEvent&);      // carrier of ~uplink_interface; status on change
   void applyUplink(anyscale_msgs::LinkStatistics& link) const;

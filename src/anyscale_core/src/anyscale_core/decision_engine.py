@@ -259,12 +259,16 @@ class DecisionEngine:
                 violating.update(i for i in ends if not self.ch.pinned[i])
         return violating
 
+    def handoff_overrides(self, name: str) -> Tuple[Tuple[str, float], ...]:
+        """The parameters a new instance of `name` starts with: its latest handed-over state."""
+        if self.ch.model.node(name).state_handoff is None:
+            return ()
+        return tuple(sorted(self.handoff.get(name, {}).items()))
+
     def _start(self, i: int, k: int) -> StartNode:
         name = self.ch.node_names[i]
-        handoff = self.ch.model.node(name).state_handoff
-        overrides = tuple(sorted(self.handoff.get(name, {}).items())) if handoff else ()
         lease = 0.0 if k == self.ch.master else self.params.lease_s
-        return StartNode(name, self.ch.scale_names[k], overrides, lease)
+        return StartNode(name, self.ch.scale_names[k], self.handoff_overrides(name), lease)
 
     def _renewals(self, up) -> List[RenewLeases]:
         renewals = []

@@ -4,7 +4,7 @@ import math
 import os
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Dict, List
 
 import diagnostic_updater
@@ -20,6 +20,7 @@ from .allocators import make_allocator
 from .characterisation import characterise
 from .cost import perf
 from .decision_engine import DecisionEngine, DecisionParams, RenewLeases, StartNode, StopNode
+from .message_arrivals import MessageArrivals
 from .model import ModelError, load_model
 
 WATCH_RESEND_S = 10.0     # re-send watch lists now and then: an agent may have restarted
@@ -40,6 +41,7 @@ class NodeParams:
     stop_timeout_s: float
     adopt_wait_s: float
     stop_sigint_timeout_s: float
+    handoff_wait_s: float
 
 
 def read_params(get=rospy.get_param) -> NodeParams:
@@ -68,7 +70,7 @@ def read_params(get=rospy.get_param) -> NodeParams:
     return NodeParams(model, str(get("~allocator", "paper")), number("period_s", 1.0, 0.05),
                       engine, number("service_timeout_s", 5.0, 0.1),
                       number("stop_timeout_s", 20.0, 0.1), number("adopt_wait_s", 5.0),
-                      number("stop_sigint_timeout_s", 0.5))
+                      number("stop_sigint_timeout_s", 0.5), number("handoff_wait_s", 1.0))
 
 
 class DecisionNode:
@@ -84,6 +86,7 @@ class DecisionNode:
         self.engine = DecisionEngine(self.ch, allocator, params.engine, time.monotonic())
         self.lock = threading.Lock()          # the engine and the reports, across threads
         self.wake = threading.Event()         # set: tick now, a link was lost
+        self.handoffs = MessageArrivals()     # state hand-off messages, per node
         self.reports: Dict[str, object] = {}
         self.statuses: Dict[str, ScaleStatus] = {}
         self.violating: List[str] = []
@@ -127,6 +130,7 @@ class DecisionNode:
         params = conv.handoff_params_from_pose(msg)
         with self.lock:
             self.engine.observe_handoff(node, params)
+        self.handoffs.arrived(node)
 
     # --- the loop -----------------------------------------------------------------------------
     def run(self):
@@ -230,6 +234,7 @@ class DecisionNode:
         starts (roscpp's same-name hand-over can end both, ros_comm#2018)."""
         for action in actions:
             if isinstance(action, StopNode):
+                self._await_fresh_state(node)
                 try:
                     reply = self.agents.stop(action.scale, node)
                     if not reply.success:
@@ -239,7 +244,17 @@ class DecisionNode:
                     rospy.logwarn("anyscale decision: stop %s on %s failed: %s", node,
                                   action.scale, e)
             elif isinstance(action, StartNode):
+                with self.lock:
+                    action = replace(
+                        action, param_overrides=self.engine.handoff_overrides(node))
                 self._start(action, event, stamp, decided)
+
+    def _await_fresh_state(self, node):
+        """A node that hands its state over and can still be reached is stopped right after its
+        next state message (at most ~handoff_wait_s from now): the new instance starts from its
+        latest state, and its subscribers' silence begins at the stop, not a period before."""
+        if self.model.node(node).state_handoff is not None:
+            self.handoffs.wait_for_next(node, self.params.handoff_wait_s)
 
     def _start(self, action: StartNode, event, stamp, decided):
         node, scale = action.node, action.scale

@@ -1,4 +1,5 @@
-// fork/exec, staged SIGINT -> SIGTERM -> SIGKILL stop of whole process groups, and reaping.
+// Node processes: starts (on the spawner thread), standbys, staged SIGINT -> SIGTERM -> SIGKILL
+// stop of whole process groups, and reaping.
 #include "anyscale_agent_cpp/supervisor.h"
 
 #include <fcntl.h>
@@ -13,6 +14,8 @@
 #include <cstring>
 #include <thread>
 
+#include "anyscale_agent_cpp/child_process.h"
+
 namespace anyscale_agent
 {
 namespace
@@ -22,13 +25,6 @@ using Clock = std::chrono::steady_clock;
 Clock::duration seconds(double s)
 {
   return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(std::max(0.0, s)));
-}
-
-int failSpawn(std::string* error, const std::string& why)
-{
-  if (error)
-    *error = why;
-  return 0;
 }
 
 bool groupExists(int pgid)
@@ -94,72 +90,6 @@ bool Supervisor::isAlive(const Record& r)
   return r.info.pid != 0;
 }
 
-int Supervisor::spawn(const std::vector<std::string>& argv, int stdin_fd, int log_fd, std::string* error)
-{
-  int pipe_fds[2];
-  if (::pipe2(pipe_fds, O_CLOEXEC) != 0)
-    return failSpawn(error, std::string("pipe2: ") + std::strerror(errno));
-  UniqueFd err_read(pipe_fds[0]), err_write(pipe_fds[1]);
-  const pid_t parent = ::getpid();
-  const int death_signal = options_.parent_death_signal;
-
-  // Everything the child needs is prepared before fork: between fork and exec only
-  // async-signal-safe calls are allowed (the agent is multi-threaded).
-  std::vector<char*> cargv;
-  for (const auto& a : argv)
-    cargv.push_back(const_cast<char*>(a.c_str()));
-  cargv.push_back(nullptr);
-
-  const pid_t pid = ::fork();
-  if (pid < 0)
-    return failSpawn(error, std::string("fork: ") + std::strerror(errno));
-  if (pid == 0)
-  {
-    ::setsid();
-    if (death_signal > 0)
-    {
-      ::prctl(PR_SET_PDEATHSIG, death_signal);
-      if (::getppid() != parent)  // the agent died before prctl took effect
-        ::_exit(127);
-    }
-    // Dispositions set to SIG_IGN (roscpp ignores SIGPIPE) and the signal mask survive exec.
-    for (int sig = 1; sig < NSIG; ++sig)
-      if (sig != SIGKILL && sig != SIGSTOP)
-        ::signal(sig, SIG_DFL);
-    sigset_t none;
-    sigemptyset(&none);
-    ::sigprocmask(SIG_SETMASK, &none, nullptr);
-    ::dup2(stdin_fd, STDIN_FILENO);
-    ::dup2(log_fd, STDOUT_FILENO);
-    ::dup2(log_fd, STDERR_FILENO);
-    // The agent's sockets (its XML-RPC port, topic connections) must not live on in children.
-    const int keep = err_write.get();
-    if (keep > 3)
-      ::close_range(3, keep - 1, 0);
-    ::close_range(keep + 1, ~0U, 0);
-    ::execv(cargv[0], cargv.data());
-    const int e = errno;
-    ssize_t ignored = ::write(err_write.get(), &e, sizeof e);
-    (void)ignored;
-    ::_exit(127);
-  }
-
-  err_write.reset();
-  int child_errno = 0;
-  ssize_t n;
-  do
-    n = ::read(err_read.get(), &child_errno, sizeof child_errno);
-  while (n < 0 && errno == EINTR);
-  if (n == sizeof child_errno)
-  {
-    int status;
-    ::waitpid(pid, &status, 0);
-    return failSpawn(error, "cannot execute '" + argv[0] + "': " + std::strerror(child_errno));
-  }
-
-  return pid;
-}
-
 int Supervisor::start(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
                       std::string* error)
 {
@@ -211,7 +141,7 @@ int Supervisor::launch(const std::string& name, const std::vector<std::string>& 
     spawn_cv_.wait(spawn_lock, [this] { return !spawn_job_; });
     bool done = false;
     spawn_job_ = [&] {
-      child_pid = spawn(argv, child_stdin.get(), log.get(), error);
+      child_pid = spawnChild(argv, child_stdin.get(), log.get(), options_.parent_death_signal, error);
       done = true;
     };
     spawn_cv_.notify_all();

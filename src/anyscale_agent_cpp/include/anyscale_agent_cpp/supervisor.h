@@ -132,7 +132,6 @@ private:
   void reapLocked();
   int launch(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
              bool standby, std::string* error);
-  int spawn(const std::vector<std::string>& argv, int stdin_fd, int log_fd, std::string* error);
   void spawnerLoop();
 
   SupervisorOptions options_;

@@ -58,6 +58,16 @@ def test_scales_nodes_connections_and_events(testbed):
     assert "10.0 Hz" in scan_amcl and scan_amcl.endswith("ok")
     assert "below min" in row(text, "amcl->ekf")  # 1 Hz on the robot
     assert "MIGRATE" in text and "laptop can take it" in text and "0.80 s" in text
+    assert "uplink" not in text                   # the robot watches none here
+
+
+def test_the_masters_uplink_carrier(testbed):
+    statuses = {"robot": ScaleStatus(scale="robot", is_master=True, link=LinkStatistics(
+        up=False, uplink_interface="wlan0", carrier=False))}
+    text = frame(testbed, statuses=statuses)
+    assert "uplink of robot: wlan0, NO CARRIER" in text
+    statuses["robot"].link.carrier = statuses["robot"].link.up = True
+    assert "uplink of robot: wlan0, carrier" in frame(testbed, statuses=statuses)
 
 
 def test_without_mapping_model_or_events(testbed):

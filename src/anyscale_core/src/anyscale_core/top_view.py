@@ -47,6 +47,12 @@ def render(statuses: Mapping[str, object], mapping, events: Sequence[object],
             bw = _num(s.link.bandwidth_mbps, ".1f", " Mbit/s")
         out.append(f"{scale:<10} {_num(s.cpu_percent, '5.1f', '%'):>6} "
                    f"{_num(mem, '5.1f', '%'):>9}  {link:<5} {rtt:>8} {bw:>12}")
+    for scale in sorted(statuses):
+        link = statuses[scale].link
+        if statuses[scale].is_master and link.uplink_interface:
+            out.append(f"uplink of {scale}: {link.uplink_interface}, " +
+                       ("carrier" if link.carrier else
+                        "NO CARRIER: every other scale is out of reach"))
     out += ["", f"{'NODE':<20} {'SCALE':<10} {'STATE':<13} {'CPU':>7} {'RSS':>9} {'LEASE':>7}"]
     rows: Dict[str, List[str]] = {}
     standbys: List[str] = []

@@ -80,6 +80,7 @@ def test_a_failing_command_names_the_problem():
 
 MASTER_PORT = 11641
 NODE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "nodes", "link_shaper")
+PROBE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "nodes", "link_shaper_probe.py")
 
 
 @pytest.fixture
@@ -149,53 +150,22 @@ def test_node_follows_its_schedule_on_the_real_link(roscore, tmp_path):
         assert "wifi: 9.0 Mbit/s at t=0.0 s" in log and "wifi: link down" in log, log
 
 
-def test_node_publishes_coverage_for_the_true_pose(roscore, tmp_path, monkeypatch):
-    # The probe is rospy in this process (no other test here starts a node in-process).
-    monkeypatch.setenv("ROS_MASTER_URI", roscore["ROS_MASTER_URI"])
-    import rospy
-    from nav_msgs.msg import OccupancyGrid, Odometry
-    from std_msgs.msg import Float32
-    from visualization_msgs.msg import Marker
-
+def test_node_publishes_coverage_for_the_true_pose(roscore, tmp_path):
     node = start_node(roscore, tmp_path, "mode:=coverage", "access_point_x:=2.0",
                       "access_point_y:=5.0", "dry_run:=true", "rate_hz:=10")
     try:
-        rospy.init_node("link_shaper_probe", anonymous=True, disable_signals=True)
-        grid = OccupancyGrid()
-        grid.header.frame_id = "map"
-        grid.info.resolution, grid.info.width, grid.info.height = 0.1, 100, 100
-        grid.info.origin.orientation.w = 1.0
-        grid.data = ([0] * 50 + [100] * 2 + [0] * 48) * 100   # a wall at x = 5.0..5.2
-        map_pub = rospy.Publisher("/map", OccupancyGrid, queue_size=1, latch=True)
-        pose_pub = rospy.Publisher("/sim/ground_truth", Odometry, queue_size=1)
-        bandwidths = []
-        rospy.Subscriber("/anyscale/wifi/bandwidth_mbps", Float32,
-                         lambda m: bandwidths.append(m.data))
-        map_pub.publish(grid)
-
-        def drive_to(x, y, expected):
-            odom = Odometry()
-            odom.header.frame_id = "map"
-            odom.pose.pose.position.x, odom.pose.pose.position.y = x, y
-            odom.pose.pose.orientation.w = 1.0
-            deadline = time.monotonic() + 20
-            while time.monotonic() < deadline and (not bandwidths or bandwidths[-1] != expected):
-                pose_pub.publish(odom)
-                time.sleep(0.1)
-            return bandwidths[-1] if bandwidths else None
-
-        assert drive_to(3.0, 5.0, 27.0) == 27.0
-        assert drive_to(300.0, 5.0, 0.0) == 0.0            # far off the floor: no coverage
-        coverage = rospy.wait_for_message("/anyscale/wifi/coverage", OccupancyGrid, timeout=20)
-        assert (coverage.info.width, coverage.info.height) == (20, 20)
-        assert coverage.info.resolution == 0.5 and coverage.header.frame_id == "map"
-        assert max(coverage.data) == 100 and min(coverage.data) >= 0
-        marker = rospy.wait_for_message("/anyscale/wifi/access_point", Marker, timeout=20)
-        assert (marker.pose.position.x, marker.pose.position.y) == (2.0, 5.0)
+        probe = subprocess.run([sys.executable, PROBE, "3.0"], env=roscore, capture_output=True,
+                               text=True, timeout=90)
     finally:
         stop(node)
-        rospy.signal_shutdown("test done")
     log = (tmp_path / "node.log").read_text()
+    assert probe.returncode == 0, probe.stderr[-2000:] + log
+    seen = json.loads(probe.stdout.strip().splitlines()[-1])
+    assert (seen["near"], seen["far"]) == (27.0, 0.0), log
+    coverage = seen["coverage"]
+    assert (coverage["size"], coverage["resolution"], coverage["frame_id"]) == ([20, 20], 0.5, "map")
+    assert coverage["max"] == 100 and coverage["min"] >= 0
+    assert seen["access_point"] == [2.0, 5.0]
     assert "wifi: 27.0 Mbit/s at (3.00, 5.00)" in log, log
     assert "wifi: link down (no coverage at (300.00, 5.00))" in log, log
     assert "dry run, would run: ip -n anyscale_robot link set asv_robot down" in log, log

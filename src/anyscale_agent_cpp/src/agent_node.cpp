@@ -4,6 +4,7 @@
 #include <ros/package.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -249,19 +250,22 @@ void AgentNode::onGraph(const ros::SteadyTimerEvent&)
     topics_->update(*local);
 }
 
-void AgentNode::boostStart(const std::string& name, int pid)
+void AgentNode::setStartPriority(const std::string& name, int pid, int nice)
 {
-  if (start_boost_nice_ == 0)
-    return;
+  // The boost is relative: a node declared to yield (launch.nice > 0) still yields to a boosted
+  // node of nice 0 started with it.
+  const int boosted = std::clamp(nice + start_boost_nice_, -20, 19);
   std::string error;
-  if (!setProcessNice(pid, start_boost_nice_, &error))
+  if (boosted != 0 && !setProcessNice(pid, boosted, &error))
   {
-    ROS_WARN_ONCE("cannot give started nodes nice %d for their first %.1f s (%s): ~start_boost_nice ignored",
-                  start_boost_nice_, start_boost_s_, error.c_str());
+    ROS_WARN_ONCE("%s: cannot run it at nice %d (%s)%s; nodes run at the agent's priority", name.c_str(),
+                  boosted, error.c_str(), boosted < 0 ? ": raising a priority needs CAP_SYS_NICE" : "");
     return;
   }
+  if (boosted == nice)
+    return;
   std::lock_guard<std::mutex> lock(boost_mutex_);
-  boosted_[name] = { pid, steadyNow() + start_boost_s_ };
+  boosted_[name] = { pid, steadyNow() + start_boost_s_, nice };
 }
 
 void AgentNode::endBoosts()
@@ -270,15 +274,15 @@ void AgentNode::endBoosts()
   const double now = steadyNow();
   for (auto it = boosted_.begin(); it != boosted_.end();)
   {
-    const auto [pid, until] = it->second;
-    if (now < until)
+    const Boost b = it->second;
+    if (now < b.until)
     {
       ++it;
       continue;
     }
     const auto info = supervisor_.info(it->first);
     std::string error;
-    if (info && info->pid == pid && !setProcessNice(pid, 0, &error))
+    if (info && info->pid == b.pid && !setProcessNice(b.pid, b.nice, &error))
       ROS_WARN("%s: could not end its start priority: %s", it->first.c_str(), error.c_str());
     it = boosted_.erase(it);
   }

@@ -104,7 +104,7 @@ bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::S
     ROS_ERROR("start_node %s", res.message.c_str());
     return true;
   }
-  boostStart(name, pid);
+  setStartPriority(name, pid, decl->nice);
   {
     std::lock_guard<std::mutex> lock(leases_mutex_);
     leases_.grant(name, steadyNow(), req.lease_s);

@@ -147,6 +147,13 @@ NodeModel NodeModel::parse(const YAML::Node& root, const std::string& source)
         throw ModelError(where + ": launch.warm_start must be true or false");
       d.warm_start = warm.Scalar() == "true";
     }
+    if (const YAML::Node nice = launch["nice"])
+    {
+      int value = 0;
+      if (!nice.IsScalar() || !YAML::convert<int>::decode(nice, value) || value < -20 || value > 19)
+        throw ModelError(where + ": launch.nice must be an integer from -20 to 19");
+      d.nice = value;
+    }
     model.nodes_.emplace(d.name, std::move(d));
   }
   return model;

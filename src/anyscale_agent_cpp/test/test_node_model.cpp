@@ -25,7 +25,7 @@ nodes:
       params: {map_file: $(find nav_pkg)/maps/m.yaml, particles: 500, nested: {a: [1, 2]}}
     cpu_usage: {robot: 50}
   - name: robot/camera
-    launch: {package: drivers, type: camera.py, warm_start: true}
+    launch: {package: drivers, type: camera.py, warm_start: true, nice: 5}
 )";
 
 std::string locate(const std::string& pkg)
@@ -52,6 +52,8 @@ TEST(NodeModel, ParsesDeclaredNodes)
   EXPECT_EQ(d->params["particles"].as<int>(), 500);
   EXPECT_FALSE(d->warm_start);
   EXPECT_TRUE(m.find("robot/camera")->warm_start);
+  EXPECT_EQ(m.find("robot/camera")->nice, 5);
+  EXPECT_EQ(d->nice, 0);
   EXPECT_EQ(m.find("teleop"), nullptr);
 }
 
@@ -98,6 +100,11 @@ TEST(NodeModel, ErrorsNameTheNodeAndKey)
   EXPECT_NE(error_of("nodes: [{name: a, launch: {package: p, type: t, warm_start: yes please}}]")
                 .find("launch.warm_start must be true or false"),
             std::string::npos);
+  for (const char* bad : { "20", "-21", "2.5", "high" })
+    EXPECT_NE(error_of(std::string("nodes: [{name: a, launch: {package: p, type: t, nice: ") + bad + "}}]")
+                  .find("launch.nice must be an integer from -20 to 19"),
+              std::string::npos)
+        << bad;
   try
   {
     NodeModel::load("/nonexistent/model.yaml");

@@ -16,6 +16,7 @@ def test_testbed_loads(testbed):
     assert amcl.launch.package == "anyscale_nav_demo"
     assert amcl.state_handoff.kind == "pose"
     assert amcl.launch.warm_start and not testbed.node("laser").launch.warm_start
+    assert amcl.launch.nice == 0 and testbed.node("ar_recognition").launch.nice == 5
 
 
 BAD_MODELS = [
@@ -40,6 +41,9 @@ BAD_MODELS = [
     (("nodes", 9, "pinned"), "server", "nodes[9] (amcl).pinned", "unknown scale"),
     (("nodes", 9, "launch", "warm_start"), "yes", "nodes[9] (amcl).launch.warm_start",
      "true or false"),
+    (("nodes", 9, "launch", "nice"), 20, "nodes[9] (amcl).launch.nice", "-20 to 19"),
+    (("nodes", 9, "launch", "nice"), -21, "nodes[9] (amcl).launch.nice", ">= -20"),
+    (("nodes", 9, "launch", "nice"), "high", "nodes[9] (amcl).launch.nice", "integer"),
     (("nodes", 9, "cpu_usage"), {"laptop": 10}, "nodes[9] (amcl).cpu_usage", "'robot'"),
     (("nodes", 9, "state_handoff", "kind"), "memory", "state_handoff.kind", "pose"),
     (("nodes", 9, "colour"), "green", "nodes[9] (amcl).colour", "unknown key"),

@@ -54,8 +54,9 @@ private:
   void onGraph(const ros::SteadyTimerEvent&);       // master queries: registration, local topics
   void onUplink(const ros::SteadyTimerEvent&);      // carrier of ~uplink_interface; status on change
   void applyUplink(anyscale_msgs::LinkStatistics& link) const;
-  void boostStart(const std::string& name, int pid);  // see ~start_boost_nice
-  void endBoosts();                                   // on the supervision thread
+  // The node's launch.nice, with ~start_boost_nice added for its first ~start_boost_s.
+  void setStartPriority(const std::string& name, int pid, int nice);
+  void endBoosts();  // on the supervision thread
 
   // Warm standbys (agent_services.cpp): one per warm_start node that does not run here.
   void keepStandbysReady();
@@ -82,7 +83,13 @@ private:
   std::map<std::string, double> standby_due_;  // node -> steady time its standby may start
   int start_boost_nice_ = 0;         // ~start_boost_nice: a started node's nice for its first seconds
   double start_boost_s_ = 3.0;      // ~start_boost_s
-  std::map<std::string, std::pair<int, double>> boosted_;  // node -> (pid, steady time it ends)
+  struct Boost
+  {
+    int pid;
+    double until;  // steady time
+    int nice;      // what the node runs at afterwards
+  };
+  std::map<std::string, Boost> boosted_;
   std::mutex boost_mutex_;
   std::string uplink_interface_;    // ~uplink_interface: whose carrier loss cuts the other scales off
   std::atomic<bool> uplink_up_{ true };

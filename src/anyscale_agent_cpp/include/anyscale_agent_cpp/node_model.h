@@ -28,6 +28,7 @@ struct NodeDecl
   std::vector<std::pair<std::string, std::string>> remaps;
   YAML::Node params;  // map of private parameters (may be null)
   bool warm_start = false;  // keep a warm standby (scripts/python_standby) where it does not run
+  int nice = 0;             // CPU priority it runs at, -20..19 (roslaunch: launch-prefix="nice -n N")
 };
 
 // Package name -> its source/share directory, or "" if unknown (rospack in the ROS layer).

@@ -56,6 +56,8 @@ class LaunchSpec:
     # rospy nodes only: each agent keeps a pre-imported interpreter of this node ready where
     # it does not run (agent README, "Warm standby"), so a move there skips the imports.
     warm_start: bool = False
+    # CPU priority the agent runs it at, -20..19 (roslaunch: launch-prefix="nice -n N").
+    nice: int = 0
 
 
 @dataclass(frozen=True)
@@ -335,7 +337,8 @@ def _parse_launch(r: _Reader, value: Any, key: str) -> LaunchSpec:
     if value is None:
         r.fail(key, "missing: a node needs launch.package and launch.type to be started")
     d = r.mapping(value, key)
-    r.no_unknown_keys(d, ("package", "type", "args", "remaps", "params", "warm_start"), key)
+    r.no_unknown_keys(d, ("package", "type", "args", "remaps", "params", "warm_start", "nice"),
+                      key)
     package = r.string(r.require(d, "package", key), f"{key}.package", _PACKAGE_NAME,
                        "a ROS package name")
     exe = r.string(r.require(d, "type", key), f"{key}.type", _EXECUTABLE,
@@ -347,8 +350,11 @@ def _parse_launch(r: _Reader, value: Any, key: str) -> LaunchSpec:
     params = tuple(r.mapping(d.get("params", {}) or {}, f"{key}.params").items())
     for pname, _ in params:
         r.string(pname, f"{key}.params", _NODE_NAME, "a parameter name")
+    nice = r.integer(d.get("nice", 0), f"{key}.nice", -20)
+    if nice > 19:
+        r.fail(f"{key}.nice", f"expected a nice value from -20 to 19, got {nice}")
     return LaunchSpec(package, exe, args, remaps, params,
-                      r.boolean(d.get("warm_start", False), f"{key}.warm_start"))
+                      r.boolean(d.get("warm_start", False), f"{key}.warm_start"), nice)
 
 
 def _parse_handoff(r: _Reader, value: Any, key: str) -> Optional[StateHandoff]:

@@ -70,3 +70,19 @@ def test_delayed_pose_carried_forward_and_map_to_odom():
     assert now == pytest.approx((2.0, 2.0, math.pi / 2), abs=1e-9)
     mo = map_to_odom(now, odom_now)
     assert compose(mo, odom_now) == pytest.approx(now, abs=1e-9)
+
+
+def test_map_to_odom_pairs_poses_of_the_same_time_when_odometry_lags():
+    # The robot drives +x at 0.5 m/s; the fused pose is at t = 10 s, the latest odometry pose
+    # is from t = 9.6 s (late, a busy CPU). map->odom from the pose of 9.6 s: composing it with
+    # odometry of any later time gives where the robot is then, not 0.2 m ahead of it.
+    f = PlanarEKF(pose=(3.0, 1.0, 0.0))
+    f.x[3] = 0.5
+    at_odom = f.pose_after(-0.4)
+    assert at_odom == pytest.approx((2.8, 1.0, 0.0), abs=1e-9)
+    assert f.pose == (3.0, 1.0, 0.0)                         # the state is left as it is
+    odom_at_9_6, odom_at_10 = (7.8, 2.0, 0.0), (8.0, 2.0, 0.0)
+    mo = map_to_odom(at_odom, odom_at_9_6)
+    assert compose(mo, odom_at_10) == pytest.approx((3.0, 1.0, 0.0), abs=1e-9)
+    wrong = map_to_odom(f.pose, odom_at_9_6)                 # the lag's motion counted twice
+    assert compose(wrong, odom_at_10)[0] == pytest.approx(3.2, abs=1e-9)

@@ -70,6 +70,12 @@ class PlanarEKF:
     def pose(self):
         return (float(self.x[X]), float(self.x[Y]), float(self.x[YAW]))
 
+    def pose_after(self, dt):
+        """The pose the motion model gives dt seconds from the state's time (dt < 0: before
+        it), the state left as it is."""
+        x, y, th, v, w = (float(c) for c in self.x)
+        return (x + v * math.cos(th) * dt, y + v * math.sin(th) * dt, wrap_angle(th + w * dt))
+
 
 def pose_now_from_delayed(measured_at_stamp, odom_at_stamp, odom_now):
     """Carry a pose measured at an earlier stamp forward by the odometry motion since then."""

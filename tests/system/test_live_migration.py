@@ -97,7 +97,9 @@ def test_2_bandwidth_below_ars_need_brings_ar_back_and_amcl_stays(run, phases):
     weak_at, down_at, _ = phases
     back = [e for e in moves(run, "migrate_back") if weak_at <= e.decided_t < down_at]
     assert [e.node for e in back] == ["ar_recognition"], back
-    assert "bandwidth" in back[0].reason
+    # Either rule may fire first on the weak link: the bandwidth estimate falling below AR's
+    # need, or AR's camera connection falling below its freq_min for part of its tolerance.
+    assert "bandwidth" in back[0].reason or "below freq_min" in back[0].reason, back[0]
     assert mapping_at(run, down_at - 0.5)["amcl"] == "laptop"
 
 

@@ -159,11 +159,12 @@ bool AgentNode::onStop(anyscale_msgs::StopNode::Request& req, anyscale_msgs::Sto
   // a rospy node unregisters its topics and services early in its shutdown (after its
   // on_shutdown hooks), then spends half a second or more joining threads, all of it dead
   // time on its topics. Only a node seen registered counts: one still starting could
-  // register after the check.
+  // register after the check. Not asked over a link known to be down: roscpp's master call
+  // has no timeout, and the SIGKILL after sigint_timeout_s ends the node anyway.
   bool left_master = false;
   if (req.sigint_timeout_s > 0.0f && before->state == ProcState::Running)
     while (!supervisor_.waitGone(name, 0.03) && std::chrono::steady_clock::now() - stop_began < std::chrono::duration<double>(limit))
-      if (!graph_.inSystemState(name))
+      if (link_->stats().up && !graph_.inSystemState(name))
       {
         left_master = supervisor_.killNow(name);
         break;

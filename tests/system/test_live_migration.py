@@ -20,12 +20,8 @@ import pytest
 from anyscale_core.testbed_record import (TestbedRecord, duplicate_instances, first_after,
                                           link_transitions, longest_gap, mapping_at,
                                           pose_errors)
-from anyscale_core.two_scale_testbed import missing_capabilities
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-MISSING = missing_capabilities()
-pytestmark = pytest.mark.skipif(bool(MISSING), reason="the two-scale test bed needs " +
-                                "; ".join(MISSING))
 
 SCHEDULE = "[[0, 27], [35, 3], [50, 0], [56, 27]]"
 HYSTERESIS_S = 10.0

@@ -9,12 +9,8 @@ import pytest
 from anyscale_core.testbed_record import (TestbedRecord, duplicate_instances, first_after,
                                           link_transitions, longest_gap, mapping_at)
 from anyscale_core.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
-from anyscale_core.two_scale_testbed import missing_capabilities
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-MISSING = missing_capabilities()
-pytestmark = pytest.mark.skipif(bool(MISSING), reason="the two-scale test bed needs " +
-                                "; ".join(MISSING))
 
 SCHEDULE = "[[0, 27], [15, 0], [21, 27]]"
 HYSTERESIS_S = 5.0

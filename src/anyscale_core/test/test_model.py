@@ -42,7 +42,7 @@ BAD_MODELS = [
     (("nodes", 9, "launch", "warm_start"), "yes", "nodes[9] (amcl).launch.warm_start",
      "true or false"),
     (("nodes", 9, "launch", "nice"), 20, "nodes[9] (amcl).launch.nice", "-20 to 19"),
-    (("nodes", 9, "launch", "nice"), -21, "nodes[9] (amcl).launch.nice", ">= -20"),
+    (("nodes", 9, "launch", "nice"), -21, "nodes[9] (amcl).launch.nice", "from -20 to 19"),
     (("nodes", 9, "launch", "nice"), "high", "nodes[9] (amcl).launch.nice", "integer"),
     (("nodes", 9, "cpu_usage"), {"laptop": 10}, "nodes[9] (amcl).cpu_usage", "'robot'"),
     (("nodes", 9, "state_handoff", "kind"), "memory", "state_handoff.kind", "pose"),

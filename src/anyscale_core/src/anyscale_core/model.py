@@ -182,9 +182,10 @@ class _Reader:
             self.fail(key, f"expected a number <= {maximum:g}, got {value:g}")
         return float(value)
 
-    def integer(self, value: Any, key: str, minimum: int) -> int:
-        if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-            self.fail(key, f"expected an integer >= {minimum}, got {_describe(value)}")
+    def integer(self, value: Any, key: str, minimum: int, maximum: float = math.inf) -> int:
+        if isinstance(value, bool) or not isinstance(value, int) or not minimum <= value <= maximum:
+            bound = f">= {minimum}" if maximum == math.inf else f"from {minimum} to {maximum}"
+            self.fail(key, f"expected an integer {bound}, got {_describe(value)}")
         return value
 
     def string(self, value: Any, key: str, pattern: Optional[re.Pattern] = None,
@@ -350,9 +351,7 @@ def _parse_launch(r: _Reader, value: Any, key: str) -> LaunchSpec:
     params = tuple(r.mapping(d.get("params", {}) or {}, f"{key}.params").items())
     for pname, _ in params:
         r.string(pname, f"{key}.params", _NODE_NAME, "a parameter name")
-    nice = r.integer(d.get("nice", 0), f"{key}.nice", -20)
-    if nice > 19:
-        r.fail(f"{key}.nice", f"expected a nice value from -20 to 19, got {nice}")
+    nice = r.integer(d.get("nice", 0), f"{key}.nice", -20, 19)
     return LaunchSpec(package, exe, args, remaps, params,
                       r.boolean(d.get("warm_start", False), f"{key}.warm_start"), nice)
 

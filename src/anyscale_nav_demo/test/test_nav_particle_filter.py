@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from anyscale_nav_demo.floor_plan import make_loop_floor
-from anyscale_nav_demo.particle_filter import (LikelihoodField, ParticleFilter, kld_sample_count,
-                                               sample_motion_diff, systematic_resample)
+from anyscale_nav_demo.particle_filter import (BeamLikelihood, LikelihoodField, ParticleFilter,
+                                               kld_sample_count, sample_motion_diff, systematic_resample)
 from anyscale_nav_demo.raycast import cast_rays
 
 ANGLES = np.linspace(-2.09, 2.09, 60)
@@ -151,3 +151,28 @@ def test_tracks_the_office_corridor_with_20_cm_between_updates():
         if k % 2:
             pf.resample()
     assert max(errors) < 0.3
+
+
+def test_beam_likelihood_in_blocks_equals_the_direct_formula(floor):
+    """Several blocks and a partial one, particles off the map, beams out of range."""
+    f = LikelihoodField(floor.map, max_dist=2.0)
+    rng = np.random.default_rng(4)
+    n = BeamLikelihood.BLOCK * 2 + 37
+    particles = np.column_stack([rng.uniform(-3, 15, n), rng.uniform(-3, 15, n), rng.uniform(-4, 4, n)])
+    ranges = rng.uniform(0.1, 6.0, len(ANGLES))
+    ranges[::9] = np.inf
+    offset, sigma, z_hit, z_rand, range_max = (0.2, 0.05, 0.1), 0.2, 0.95, 0.05, 5.6
+    model = BeamLikelihood(f, sigma, z_hit, z_rand)
+    got = model.weights(particles, ranges, ANGLES, offset, range_max)
+
+    ok = ranges < range_max
+    r, a = ranges[ok], ANGLES[ok]
+    c, s = np.cos(particles[:, 2]), np.sin(particles[:, 2])
+    lx = particles[:, 0] + c * offset[0] - s * offset[1]
+    ly = particles[:, 1] + s * offset[0] + c * offset[1]
+    th = particles[:, 2:3] + offset[2] + a
+    d = f.distance_at(lx[:, None] + r * np.cos(th), ly[:, None] + r * np.sin(th))
+    expected = 1.0 + np.sum((z_hit * np.exp(-d * d / (2 * sigma ** 2)) + z_rand / range_max) ** 3, axis=1)
+    assert got == pytest.approx(expected, rel=1e-12)
+    assert len(set(np.round(got, 6))) > n // 2          # not one value for all
+    assert model.weights(particles[:10], ranges, ANGLES, offset, range_max) == pytest.approx(expected[:10])

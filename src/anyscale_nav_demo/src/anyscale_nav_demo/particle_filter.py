@@ -15,16 +15,15 @@ class LikelihoodField:
         self.max_dist = max_dist
         dist = ndimage.distance_transform_edt(~occ_map.occupied) * occ_map.resolution
         self.dist = np.minimum(dist, max_dist)
+        # A border of max_dist cells: points off the map clip onto it, so lookups need no mask.
+        self.padded = np.pad(self.dist, 1, constant_values=max_dist)
         free = np.argwhere(occ_map.free)
         self.free_xy = np.column_stack(occ_map.cell_center(free[:, 1], free[:, 0]))
 
     def distance_at(self, x, y):
         """Obstacle distance at world points; points off the map count as max_dist away."""
         col, row = self.map.world_to_cell(x, y)
-        ok = self.map.inside(col, row)
-        out = np.full(np.shape(x), self.max_dist)
-        out[ok] = self.dist[row[ok], col[ok]]
-        return out
+        return self.padded[np.clip(row, -1, self.map.height) + 1, np.clip(col, -1, self.map.width) + 1]
 
 
 def sample_motion_diff(particles, d_odom, alphas, rng):
@@ -49,21 +48,71 @@ def sample_motion_diff(particles, d_odom, alphas, rng):
     return particles
 
 
-def beam_likelihoods(field, particles, ranges, angles, laser_offset, sigma_hit, z_hit, z_rand,
-                     range_max):
-    """amcl's likelihood-field weight per particle: 1 + sum over beams of p(z)^3."""
-    ok = np.isfinite(ranges) & (ranges < range_max)
-    r, a = ranges[ok], angles[ok]
-    lx, ly, lt = laser_offset
-    c, s = np.cos(particles[:, 2]), np.sin(particles[:, 2])
-    px = particles[:, 0] + c * lx - s * ly
-    py = particles[:, 1] + s * lx + c * ly
-    th = particles[:, 2:3] + lt + a[None, :]
-    ex = px[:, None] + r[None, :] * np.cos(th)
-    ey = py[:, None] + r[None, :] * np.sin(th)
-    d = field.distance_at(ex, ey)
-    pz = z_hit * np.exp(-d * d / (2 * sigma_hit ** 2)) + z_rand / range_max
-    return 1.0 + np.sum(pz ** 3, axis=1)
+class BeamLikelihood:
+    """amcl's likelihood-field weight of each particle for a scan: 1 + sum over beams of p(z)^3,
+    p(z) = z_hit exp(-d^2 / 2 sigma_hit^2) + z_rand / range_max, d the distance from the beam's
+    endpoint to the nearest obstacle.
+
+    Computed in blocks of particles, in place, in buffers kept from scan to scan. The direct numpy
+    form makes about eight particles x beams temporaries per scan (9 MB each at 5000 x 228), which
+    glibc hands back to the kernel every time: faulting them in again cost more than the
+    arithmetic (0.036 against 0.013 CPU-s a scan on the development machine), and a new process's
+    first scan 3-4 times a later one, on the path of a node brought home to a starved robot.
+    """
+
+    BLOCK = 256             # particles per block: 256 x 341 beams x 8 bytes = 0.7 MB a buffer
+
+    def __init__(self, field, sigma_hit, z_hit, z_rand):
+        self.field = field
+        self.sigma_hit, self.z_hit, self.z_rand = sigma_hit, z_hit, z_rand
+        self.buffers = None
+
+    def weights(self, particles, ranges, angles, laser_offset, range_max):
+        ok = np.isfinite(ranges) & (ranges < range_max)
+        r, a = ranges[ok], angles[ok]
+        lx, ly, lt = laser_offset
+        c, s = np.cos(particles[:, 2]), np.sin(particles[:, 2])
+        px = particles[:, 0] + c * lx - s * ly         # the laser's position per particle
+        py = particles[:, 1] + s * lx + c * ly
+        beam_angles = lt + a
+        grid, padded = self.field.map, self.field.padded
+        out = np.empty(len(particles))
+        for i in range(0, len(particles), self.BLOCK):
+            j = min(i + self.BLOCK, len(particles))
+            th, t, col, cell = self._buffers(j - i, len(r))
+            np.add(particles[i:j, 2:3], beam_angles, out=th)
+            self._axis_cells(np.cos(th, out=t), r, px[i:j], grid.origin[0], grid.width, col)
+            self._axis_cells(np.sin(th, out=t), r, py[i:j], grid.origin[1], grid.height, cell)
+            cell *= padded.shape[1]
+            cell += col
+            d = np.take(padded.ravel(), cell, out=t)
+            d *= d
+            d *= -0.5 / self.sigma_hit ** 2
+            np.exp(d, out=d)
+            d *= self.z_hit
+            d += self.z_rand / range_max
+            d **= 3
+            out[i:j] = 1.0 + d.sum(axis=1)
+        return out
+
+    def _axis_cells(self, t, r, p, origin, size, cells):
+        """Padded-grid index along one axis of the beam endpoints p + r t, t being the cosines
+        or sines of the beams' angles (overwritten)."""
+        t *= r
+        t += p[:, None]
+        t -= origin
+        t /= self.field.map.resolution
+        np.floor(t, out=t)
+        np.clip(t, -1, size, out=t)
+        t += 1
+        np.copyto(cells, t, casting="unsafe")
+
+    def _buffers(self, n, beams):
+        if self.buffers is None or self.buffers[0].shape[1] != beams:
+            shape = (self.BLOCK, beams)
+            self.buffers = (np.empty(shape), np.empty(shape), np.empty(shape, dtype=np.intp),
+                            np.empty(shape, dtype=np.intp))
+        return tuple(b[:n] for b in self.buffers)
 
 
 def kld_sample_count(k, err, z, n_min, n_max):
@@ -101,7 +150,8 @@ class ParticleFilter:
         self.min_particles, self.max_particles = min_particles, max_particles
         self.kld_err, self.kld_z = kld_err, kld_z
         self.alphas = alphas
-        self.sigma_hit, self.z_hit, self.z_rand, self.range_max = sigma_hit, z_hit, z_rand, range_max
+        self.sensor = BeamLikelihood(field, sigma_hit, z_hit, z_rand)
+        self.range_max = range_max
         self.alpha_slow, self.alpha_fast = recovery_alpha_slow, recovery_alpha_fast
         self.w_slow = self.w_fast = 0.0
         self.bin_size = np.asarray(bin_size)
@@ -122,8 +172,7 @@ class ParticleFilter:
 
     def update(self, ranges, angles, laser_offset):
         """Weigh particles by a scan; also tracks the long/short-term likelihood averages."""
-        p = beam_likelihoods(self.field, self.particles, ranges, angles, laser_offset,
-                             self.sigma_hit, self.z_hit, self.z_rand, self.range_max)
+        p = self.sensor.weights(self.particles, ranges, angles, laser_offset, self.range_max)
         w = self.weights * p
         total = w.sum()
         if not np.isfinite(total) or total <= 0:

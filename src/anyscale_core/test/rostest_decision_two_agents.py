@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """rostest: the decision node with two agents on loopback moves a stock topic_tools relay to the
 laptop, never runs two /relay processes, brings it back when the laptop's agent is SIGKILLed,
-and `anyscale top --once` shows where it runs."""
+starts it again when it crashes, and `anyscale top --once` shows where it runs."""
 import math
 import os
 import signal
@@ -221,6 +221,13 @@ class DecisionTwoAgentsTest(unittest.TestCase):
         time.sleep(2.0)
         self.assertFalse([e for e in self.events if e.kind == MigrationEvent.START], self.events)
         self.assertEqual(registered_pid("/relay", "/decision_test"), relay_pid)
+        # (e) The relay crashes where it runs: started again there, like roslaunch's respawn.
+        os.kill(relay_pid, signal.SIGSEGV)
+        restart = wait_for(lambda: self.event(MigrationEvent.RESTART, "relay", "robot"), 20.0)
+        self.assertTrue(restart, f"relay not restarted: {self.events}")
+        self.assertTrue(restart.success and "signal 11" in restart.reason, restart)
+        self.assertNotIn(registered_pid("/relay", "/decision_test"), (None, relay_pid))
+        self.assertTrue(wait_for(self.flowing, 10.0), "/chatter_relay silent after the restart")
         self.sampler.running = False
         self.sampler.join(5.0)
         self.assertGreater(self.sampler.samples, 20)

@@ -212,3 +212,45 @@ def test_objective_grows_with_better_mappings(engine, testbed_ch):
                                                (5.0, math.inf, 0.0), (5.0, 0.0, 5.0)])
 def test_effective_rate_follows_silence(rate, age, expected):
     assert effective_rate(rate, age) == expected
+
+
+def test_a_node_that_failed_where_it_runs_is_started_there_again(engine, testbed_ch):
+    engine.tick(reports(1.0), 1.0)                         # amcl to the laptop
+    r = reports(9.0, laptop_running=("amcl",))
+    r["robot"] = dataclasses.replace(r["robot"], ended={"ekf": "signal 11"})
+    result = engine.tick(r, 9.0)
+    assert ("restart", "ekf", "robot", "robot") in [(e.kind, e.node, e.from_scale, e.to_scale)
+                                                    for e in result.events]
+    assert StartNode("ekf", "robot", (), 0.0) in result.actions
+    assert "signal 11 on robot" in [e.reason for e in result.events if e.node == "ekf"][0]
+    # A remote node is started again on its remote scale, with a lease and its last state.
+    engine.observe_handoff("amcl", pose_handoff_params(1.0, 2.0, 0.5, 0.1, 0.1, 0.05, 8.0))
+    r = reports(10.0)
+    r["laptop"] = dataclasses.replace(r["laptop"], ended={"amcl": "exit code 1"})
+    restart = [a for a in engine.tick(r, 10.0).actions if isinstance(a, StartNode)]
+    assert [(a.node, a.scale, a.lease_s) for a in restart] == [("amcl", "laptop", 3.0)]
+    assert dict(restart[0].param_overrides)["initial_pose_x"] == 1.0
+
+
+def test_restarts_wait_for_the_grace_and_for_a_start_under_way(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"), DecisionParams(startup_grace_s=5.0))
+    e.adopt_or_start(reports(0.0, laptop=False), 0.0)
+    crashed = {"ekf": "signal 6"}
+
+    def restarts(t, starting=frozenset()):
+        r = reports(t, laptop=False)
+        r["robot"] = dataclasses.replace(r["robot"], ended=crashed)
+        return [ev.node for ev in e.tick(r, t, starting=starting).events if ev.kind == "restart"]
+
+    assert restarts(2.0) == []                             # still within its start's grace
+    assert restarts(6.0, starting={"ekf"}) == []           # a start not answered yet
+    assert restarts(6.5) == ["ekf"]
+    assert restarts(7.0) == []                             # one restart per grace period
+    assert restarts(11.5) == ["ekf"]
+
+
+def test_no_restart_on_a_scale_that_cannot_be_reached(engine):
+    engine.tick(reports(1.0), 1.0)
+    r = reports(9.0)
+    r["laptop"] = dataclasses.replace(r["laptop"], received_at=0.0, ended={"amcl": "signal 9"})
+    assert [ev for ev in engine.tick(r, 9.0).events if ev.kind == "restart"] == []

@@ -3,8 +3,8 @@ import math
 
 import pytest
 
-from anyscale_core.testbed_record import (EventRecord, TestbedRecord, first_after, gap_during,
-                                          link_transitions, longest_gap, move_figures,
+from anyscale_core.testbed_record import (EventRecord, TestbedRecord, first_after, format_summary,
+                                          gap_during, link_transitions, longest_gap, move_figures,
                                           reaction_s)
 
 
@@ -42,3 +42,12 @@ def test_a_move_the_run_did_not_see_to_its_end_has_no_gap():
 def test_link_transitions_are_the_changes_between_up_and_down():
     bandwidth = [(0.0, 27.0), (5.0, 3.0), (10.0, 0.0), (10.2, 0.0), (16.0, 27.0)]
     assert link_transitions(bandwidth) == [(10.0, False), (16.0, True)]
+
+
+def test_the_summary_counts_the_moves_and_names_each_restart():
+    rec = TestbedRecord(events=[event(10.0), event(20.0, kind="migrate_back", reason="link down"),
+                                event(30.0, kind="restart", reason="signal 11 on laptop")],
+                        finished_t=42.0, receipts={"/amcl_pose": [9.8, 11.2, 20.9, 30.8]})
+    text = format_summary(rec, {"amcl": "/amcl_pose"}, {"/amcl_pose": 2.0})
+    assert "migrations: 1 out, 1 back, 0 failed" in text
+    assert "restarted amcl at t=30.0 s: signal 11 on laptop" in text

@@ -7,7 +7,7 @@ actions for the agents. The rospy wrapper only converts messages and calls servi
 """
 from dataclasses import dataclass, field
 import math
-from typing import Dict, List, Mapping, Optional, Tuple
+from typing import AbstractSet, Dict, List, Mapping, Optional, Tuple
 
 import numpy as np
 
@@ -39,6 +39,7 @@ class ScaleReport:
     link_up: bool = True                         # the master's: its uplink has a carrier
     bandwidth_mbps: float = math.nan             # measured estimate; NaN = not yet measured
     standby_cpu: float = 0.0                     # warm standbys' CPU, % of one core
+    ended: Mapping[str, str] = field(default_factory=dict)  # node -> how it ended there
 
 
 def effective_rate(rate_hz: float, last_message_age_s: float) -> float:
@@ -83,7 +84,7 @@ class RenewLeases:
 
 @dataclass(frozen=True)
 class Event:
-    kind: str                           # "start", "migrate", "migrate_back", "adopt"
+    kind: str                           # "start", "migrate", "migrate_back", "adopt", "restart"
     node: str
     from_scale: str
     to_scale: str
@@ -139,9 +140,10 @@ class DecisionEngine:
 
     # --- every period -------------------------------------------------------------------------
     def tick(self, reports: Mapping[str, ScaleReport], now: float,
-             moves_allowed: bool = True) -> TickResult:
+             moves_allowed: bool = True, starting: AbstractSet[str] = frozenset()) -> TickResult:
         """One period. With moves_allowed False (the initial configuration is still coming up:
-        its rates mean nothing yet) only the leases are renewed."""
+        its rates mean nothing yet) only the leases are renewed. `starting`: nodes whose start
+        has not been answered yet."""
         state = self.dynamic_state(reports, now)
         if not moves_allowed:
             return TickResult(self._renewals(state.up_vector(self.ch)), [], state, [])
@@ -169,6 +171,12 @@ class DecisionEngine:
         if decision.moves:
             self.assign = decision.assign.copy()
             self.objective.change(now, perf(self.ch, self.assign))
+        for i in self._ended_where_assigned(reports, up, now, starting):
+            name, scale = self.ch.node_names[i], self.ch.scale_names[self.assign[i]]
+            actions.append(self._start(i, self.assign[i]))
+            events.append(Event("restart", name, scale, scale,
+                                f"{reports[scale].ended[name]} on {scale}"))
+            self.moved_at[i] = now
         actions += self._renewals(up)
         return TickResult(actions, events, state,
                           [self.ch.node_names[i] for i in sorted(violating)])
@@ -258,6 +266,23 @@ class DecisionEngine:
             if tracker.violated(now) or tracker.used_fraction(now) >= self.params.act_at_tolerance:
                 violating.update(i for i in ends if not self.ch.pinned[i])
         return violating
+
+    def _ended_where_assigned(self, reports, up, now, starting) -> List[int]:
+        """Nodes whose process ended on the scale they are assigned to, to be started there
+        again (roslaunch's respawn): a crash, or a clean exit such as the one the master asks
+        for when a stale registration takes the name (a dead instance's request delivered after
+        a partition heals). Not within startup_grace_s of their last start or move, which also
+        spaces out the restarts of a node that keeps failing: the report may still show the
+        instance a move replaces."""
+        failed = []
+        for i, name in enumerate(self.ch.node_names):
+            k = int(self.assign[i])
+            report = reports.get(self.ch.scale_names[k])
+            if (report is not None and up[k] and name in report.ended and name not in starting
+                    and now - report.received_at <= self.params.status_timeout_s
+                    and now - self.moved_at.get(i, -math.inf) >= self.params.startup_grace_s):
+                failed.append(i)
+        return failed
 
     def handoff_overrides(self, name: str) -> Tuple[Tuple[str, float], ...]:
         """The parameters a new instance of `name` starts with: its latest handed-over state."""

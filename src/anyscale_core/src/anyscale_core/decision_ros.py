@@ -151,7 +151,8 @@ class DecisionNode:
             with self.lock:
                 before = self.engine.mapping()
                 result = self.engine.tick(dict(self.reports), time.monotonic(),
-                                          moves_allowed=not coming_up)
+                                          moves_allowed=not coming_up,
+                                          starting={n for n, _ in self.starting})
                 self.violating = result.violating
             self._dispatch(result, before)
             self._send_watch_lists()
@@ -210,6 +211,10 @@ class DecisionNode:
                     with self.lock:
                         self.starting.add((action.node, action.scale))
         events = {e.node: e for e in result.events}
+        for e in result.events:
+            if e.kind == "restart":
+                rospy.logwarn("anyscale decision: %s ended (%s); starting it again", e.node,
+                              e.reason)
         for node, actions in jobs.items():
             self.moves.submit(lambda n=node, a=actions, e=events.get(node):
                               self._execute_move(n, a, e, now_stamp, decided))

@@ -15,7 +15,7 @@ ALIVE_STATES = (NodeProcess.STARTING, NodeProcess.RUNNING)
 
 EVENT_KINDS = {"start": MigrationEvent.START, "migrate": MigrationEvent.MIGRATE,
                "migrate_back": MigrationEvent.MIGRATE_BACK, "adopt": MigrationEvent.ADOPT,
-               "failed": MigrationEvent.FAILED}
+               "failed": MigrationEvent.FAILED, "restart": MigrationEvent.RESTART}
 EVENT_NAMES = {v: k for k, v in EVENT_KINDS.items()}
 
 
@@ -30,6 +30,9 @@ def scale_report_from_msg(msg, received_at: float, model_node_names: Iterable[st
     names = set(model_node_names)
     running = {model_node_name(p.name): float(p.cpu_percent) for p in msg.nodes
                if p.state in ALIVE_STATES and model_node_name(p.name) in names}
+    ended = {model_node_name(p.name): how_it_ended(p) for p in msg.nodes
+             if p.state == NodeProcess.EXITED
+             and model_node_name(p.name) in names and model_node_name(p.name) not in running}
     standby = sum(float(p.cpu_percent) for p in msg.nodes if p.state == NodeProcess.STANDBY)
     rates = {t.topic: effective_rate(float(t.rate_hz), float(t.last_message_age_s))
              for t in msg.topics}
@@ -39,7 +42,14 @@ def scale_report_from_msg(msg, received_at: float, model_node_names: Iterable[st
     link_up = bool(msg.link.up)
     bandwidth = math.nan if msg.is_master else float(msg.link.bandwidth_mbps)
     return ScaleReport(msg.scale, received_at, float(msg.cpu_percent), capacity, running,
-                       rates, link_up, bandwidth, standby)
+                       rates, link_up, bandwidth, standby, ended)
+
+
+def how_it_ended(process) -> str:
+    """'signal N' or 'exit code N' of a process that ended."""
+    if process.exit_signal:
+        return f"signal {process.exit_signal}"
+    return f"exit code {process.exit_code}"
 
 
 def watched_topics(model: SystemModel, mapping: Mapping[str, str]) -> Dict[str, List[str]]:

@@ -28,7 +28,7 @@ from .testbed_record import EventRecord, ProcessSample, TestbedRecord, format_su
 
 EVENT_NAMES = {MigrationEvent.START: "start", MigrationEvent.MIGRATE: "migrate",
                MigrationEvent.MIGRATE_BACK: "migrate_back", MigrationEvent.ADOPT: "adopt",
-               MigrationEvent.FAILED: "failed"}
+               MigrationEvent.FAILED: "failed", MigrationEvent.RESTART: "restart"}
 
 
 # python_standby's comm from its exec until it renames itself, and while it waits.

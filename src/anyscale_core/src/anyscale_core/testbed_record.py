@@ -14,7 +14,7 @@ import numpy as np
 @dataclass
 class EventRecord:
     t: float                # monitor clock (s since the run started) when it was received
-    kind: str               # start, migrate, migrate_back, adopt, failed
+    kind: str               # start, migrate, migrate_back, adopt, failed, restart
     node: str
     from_scale: str
     to_scale: str
@@ -177,6 +177,9 @@ def format_summary(rec: TestbedRecord, outputs: Dict[str, str],
     failed = [e for e in rec.events if e.kind == "failed"]
     lines.append(f"migrations: {sum(e.kind == 'migrate' for e in moves)} out, "
                  f"{sum(e.kind == 'migrate_back' for e in moves)} back, {len(failed)} failed")
+    for e in rec.events:
+        if e.kind == "restart":
+            lines.append(f"  restarted {e.node} at t={e.decided_t:.1f} s: {e.reason}")
     figures = move_figures(rec, outputs)
     if figures:
         lines.append(f"  {'t [s]':>7}  {'node':<16} {'move':<20} {'registered':>10} "

@@ -11,7 +11,7 @@ from .model import SystemModel
 STATE_NAMES = {0: "STARTING", 1: "RUNNING", 2: "STOPPING", 3: "EXITED", 4: "REPLACED",
                5: "LEASE_EXPIRED", 6: "STANDBY"}
 STANDBY = 6
-KIND_NAMES = {0: "START", 1: "MIGRATE", 2: "MIGRATE_BACK", 3: "ADOPT", 4: "FAILED"}
+KIND_NAMES = {0: "START", 1: "MIGRATE", 2: "MIGRATE_BACK", 3: "ADOPT", 4: "FAILED", 5: "RESTART"}
 
 
 def _num(value: float, fmt: str, unit: str = "") -> str:

@@ -211,15 +211,14 @@ class DecisionNode:
                     with self.lock:
                         self.starting.add((action.node, action.scale))
         events = {e.node: e for e in result.events}
-        for e in result.events:
-            if e.kind == "restart":
-                rospy.logwarn("anyscale decision: %s ended (%s); starting it again", e.node,
-                              e.reason)
         for node, actions in jobs.items():
             self.moves.submit(lambda n=node, a=actions, e=events.get(node):
                               self._execute_move(n, a, e, now_stamp, decided))
         for e in result.events:
-            if not any(isinstance(a, StartNode) for a in jobs.get(e.node, ())):
+            if e.kind == "restart":
+                rospy.logwarn("anyscale decision: %s ended (%s); starting it again", e.node,
+                              e.reason)
+            elif not any(isinstance(a, StartNode) for a in jobs.get(e.node, ())):
                 # Adopted in place (at most a duplicate stopped): nothing to wait for.
                 self._publish_event(e.kind, e.node, e.from_scale, e.to_scale, e.reason,
                                     now_stamp, 0.0)

@@ -23,7 +23,8 @@ class LikelihoodField:
     def distance_at(self, x, y):
         """Obstacle distance at world points; points off the map count as max_dist away."""
         col, row = self.map.world_to_cell(x, y)
-        return self.padded[np.clip(row, -1, self.map.height) + 1, np.clip(col, -1, self.map.width) + 1]
+        return self.padded[np.clip(row, -1, self.map.height) + 1,
+                           np.clip(col, -1, self.map.width) + 1]
 
 
 def sample_motion_diff(particles, d_odom, alphas, rng):

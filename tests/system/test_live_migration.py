@@ -17,9 +17,8 @@ import sys
 import numpy as np
 import pytest
 
-from anyscale_core.testbed_record import (TestbedRecord, duplicate_instances, first_after,
-                                          link_transitions, longest_gap, mapping_at,
-                                          pose_errors)
+from anyscale_core.testbed_record import (TestbedRecord, duplicate_instances, link_transitions,
+                                          longest_gap, mapping_at, pose_errors, reaction_s)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -106,6 +105,9 @@ def test_3_link_down_brings_both_back(run, phases):
     # The robot's agent sees the veth lose its carrier: no status_timeout_s (1.0 s) to wait.
     assert back[0].decided_t - down_at < 0.5
     assert set(mapping_at(run, up_at - 0.5)[n] for n in MIGRATABLE) == {"robot"}
+    # AMCL publishes on the robot within its tolerance of the loss (1.0-1.6 s measured).
+    reaction = reaction_s(run.receipts["/amcl_pose"], down_at, back[0].decided_t)
+    assert reaction < AMCL_POSE_TOLERANCE_S, f"/amcl_pose on the robot {reaction:.2f} s after the loss"
 
 
 @pytest.mark.xfail(reason="met in most runs, not in all: the link-loss return itself took "
@@ -114,12 +116,10 @@ def test_3_link_down_brings_both_back(run, phases):
                           "registration after the partition healed made the live AMCL exit "
                           "(5.2 s, before restarts existed); see the README",
                    strict=False)
-def test_3_amcl_pose_on_the_robot_never_silent_longer_than_its_tolerance(run, phases):
-    down_at = phases[1]
+def test_3_amcl_pose_on_the_robot_never_silent_longer_than_its_tolerance(run):
     poses = run.receipts["/amcl_pose"]
     gap = longest_gap(poses, poses[0], run.finished_t)
     assert gap <= AMCL_POSE_TOLERANCE_S, f"/amcl_pose silent for {gap:.2f} s on the robot"
-    assert first_after(poses, down_at) < AMCL_POSE_TOLERANCE_S
 
 
 def test_4_after_the_link_returns_they_move_out_again_only_after_t(run, phases):

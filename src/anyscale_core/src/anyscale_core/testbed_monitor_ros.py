@@ -24,11 +24,8 @@ from nav_msgs.msg import Odometry
 from std_msgs.msg import Float32, String
 
 from .model import ModelError, load_model
+from .ros_convert import EVENT_NAMES
 from .testbed_record import EventRecord, ProcessSample, TestbedRecord, format_summary
-
-EVENT_NAMES = {MigrationEvent.START: "start", MigrationEvent.MIGRATE: "migrate",
-               MigrationEvent.MIGRATE_BACK: "migrate_back", MigrationEvent.ADOPT: "adopt",
-               MigrationEvent.FAILED: "failed", MigrationEvent.RESTART: "restart"}
 
 
 # python_standby's comm from its exec until it renames itself, and while it waits.

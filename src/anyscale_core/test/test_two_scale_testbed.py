@@ -1,15 +1,19 @@
 """The two-scale test bed for real (root, network namespaces, tc, cgroup v1): traffic crosses
 the veth, tbf limits it, link down cuts it, the CPU quota holds a busy loop, and teardown
-leaves nothing behind, also after an error."""
+leaves nothing behind, also after an error, after Ctrl-C and with processes that linger."""
 import os
+import signal
 import subprocess
 import sys
+import threading
 import time
 
 import pytest
 
-from anyscale_core.two_scale_testbed import (ScaleEnd, TwoScaleLayout, TwoScaleTestbed,
-                                             missing_capabilities, run, shape_commands)
+from anyscale_core.testbed_teardown import is_alive
+from anyscale_core.two_scale_testbed import (ScaleEnd, TwoScaleError, TwoScaleLayout,
+                                             TwoScaleTestbed, missing_capabilities, run,
+                                             shape_commands)
 
 MISSING = missing_capabilities()
 needs_testbed = pytest.mark.skipif(bool(MISSING), reason="the test bed needs " +
@@ -105,15 +109,133 @@ def test_cpu_quota_holds_a_busy_loop():
     assert busy.poll() is not None
 
 
+# Ignores SIGINT, as does its `sleep` (an ignored signal stays ignored across exec); prints the
+# sleep's pid and waits for it.
+LINGERER = """
+import signal, subprocess
+signal.signal(signal.SIGINT, signal.SIG_IGN)
+child = subprocess.Popen(["sleep", "120"])
+print(child.pid, flush=True)
+child.wait()
+"""
+
+
+def start_lingerer(start, *args, **kw):
+    """A lingering process pair through `start`; returns (the python process, its sleep's pid)."""
+    proc = start(*args, [sys.executable, "-c", LINGERER], stdout=subprocess.PIPE, **kw)
+    return proc, int(proc.stdout.readline())
+
+
+def nothing_left(pids=()):
+    """What of the test bed is still there, in words (empty: nothing)."""
+    left = [ns for ns in namespaces().split() if ns.startswith("anyscale_t_")]
+    left += [f"veth {end.interface}" for end in LAYOUT.ends
+             if run(["ip", "link", "show", end.interface], check=False).returncode == 0]
+    left += [f"cgroup {d}" for d in os.listdir("/sys/fs/cgroup/cpu")
+             if d.startswith("anyscale_t_")]
+    left += [f"pid {pid}" for pid in pids if is_alive(pid)]
+    return left
+
+
 @needs_testbed
 def test_teardown_after_an_error_leaves_nothing():
     with pytest.raises(RuntimeError, match="boom"):
         with TwoScaleTestbed(LAYOUT, cgroup_prefix="anyscale_t") as bed:
             child = bed.start("laptop", ["sleep", "60"])
+            lingerer, its_sleep = start_lingerer(bed.start, "robot")
             raise RuntimeError("boom")
-    assert "anyscale_t_" not in namespaces()
     assert child.poll() is not None
-    assert not os.path.exists(bed.quotas["robot"].path)
+    assert nothing_left([lingerer.pid, its_sleep]) == []
+
+
+@needs_testbed
+def test_a_process_lingering_in_the_cgroup_is_killed_and_the_cgroup_removed():
+    """Started by someone else, outside the namespaces, but in the robot's CPU group: the old
+    teardown moved it to the parent group, where it ran on."""
+    with TwoScaleTestbed(LAYOUT, cgroup_prefix="anyscale_t") as bed:
+        quota = bed.quotas["robot"]
+        lingerer, its_sleep = start_lingerer(
+            subprocess.Popen, start_new_session=True, preexec_fn=lambda: quota.add(os.getpid()))
+        assert {lingerer.pid, its_sleep} <= set(quota.pids())
+    lingerer.wait(timeout=5)
+    assert nothing_left([its_sleep]) == []
+
+
+@needs_testbed
+def test_a_cgroup_busy_for_a_moment_is_removed_once_it_is_free():
+    """rmdir fails with EBUSY while the group is held (here by a child group, as by a process
+    still exiting after SIGKILL); the teardown retries instead of raising OSError."""
+    with TwoScaleTestbed(LAYOUT, cgroup_prefix="anyscale_t") as bed:
+        holder = os.path.join(bed.quotas["robot"].path, "held")
+        os.mkdir(holder)
+        threading.Timer(1.0, os.rmdir, args=[holder]).start()
+    assert nothing_left() == []
+
+
+@needs_testbed
+def test_what_teardown_cannot_remove_is_one_clear_line():
+    holder = None
+    try:
+        with pytest.raises(TwoScaleError) as raised:
+            with TwoScaleTestbed(LAYOUT, cgroup_prefix="anyscale_t") as bed:
+                holder = os.path.join(bed.quotas["robot"].path, "held")
+                os.mkdir(holder)        # never freed during the teardown
+        message = str(raised.value)
+        assert message.startswith("teardown left behind: cgroup ")
+        assert "anyscale_t_robot" in message and "\n" not in message
+        assert "anyscale_t_" not in namespaces()
+    finally:
+        if holder:
+            os.rmdir(holder)
+            os.rmdir(os.path.dirname(holder))
+
+
+@needs_testbed
+def test_teardown_twice_is_fine():
+    with TwoScaleTestbed(LAYOUT, cgroup_prefix="anyscale_t") as bed:
+        bed.start("laptop", ["sleep", "60"])
+        assert bed.teardown() == []
+        assert bed.teardown() == []
+    assert bed.teardown() == []
+    assert nothing_left() == []
+
+
+# A script that holds a test bed until it is interrupted, as scripts/run_testbed.py does.
+HOLDER = f"""
+import subprocess, sys, time
+from anyscale_core.two_scale_testbed import ScaleEnd, TwoScaleLayout, TwoScaleTestbed
+LAYOUT = {LAYOUT!r}
+try:
+    with TwoScaleTestbed(LAYOUT, cgroup_prefix="anyscale_t") as bed:
+        bed.start("laptop", ["sleep", "120"])
+        proc = bed.start("robot", [sys.executable, "-c", {LINGERER!r}], stdout=subprocess.PIPE)
+        print(proc.pid, int(proc.stdout.readline()), flush=True)
+        time.sleep(120)
+except KeyboardInterrupt:
+    print("interrupted", flush=True)
+    sys.exit(130)
+"""
+
+
+@needs_testbed
+@pytest.mark.parametrize("interrupts", [1, 2], ids=["ctrl-c", "ctrl-c-again-during-teardown"])
+def test_ctrl_c_leaves_nothing_behind(interrupts):
+    script = subprocess.Popen([sys.executable, "-c", HOLDER], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True,
+                              env=dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path)))
+    try:
+        pids = [int(p) for p in script.stdout.readline().split()]
+        assert len(pids) == 2, script.stderr.read()
+        script.send_signal(signal.SIGINT)
+        if interrupts == 2:
+            time.sleep(1.0)     # the lingerer ignores SIGINT: the teardown waits out its grace
+            script.send_signal(signal.SIGINT)
+        out, err = script.communicate(timeout=30)
+    finally:
+        script.kill()
+    assert script.returncode == 130 and "interrupted" in out
+    assert "Traceback" not in err, err
+    assert nothing_left(pids) == []
 
 
 @needs_testbed
@@ -122,3 +244,13 @@ def test_a_second_setup_cleans_leftovers_of_a_killed_run():
     with TwoScaleTestbed(LAYOUT, cgroup_prefix="anyscale_t"):
         assert LAYOUT.laptop.namespace in namespaces()
     assert "anyscale_t_" not in namespaces()
+
+
+@needs_testbed
+def test_a_veth_left_outside_the_namespaces_is_removed():
+    """A setup that failed before moving the veth's ends into the namespaces left them here."""
+    run(["ip", "link", "add", LAYOUT.robot.interface, "type", "veth", "peer", "name",
+         LAYOUT.laptop.interface])
+    with TwoScaleTestbed(LAYOUT, cgroup_prefix="anyscale_t"):
+        pass
+    assert nothing_left() == []

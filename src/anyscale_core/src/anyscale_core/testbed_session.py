@@ -7,8 +7,9 @@ import subprocess
 import threading
 from typing import Callable, Dict, IO, List, Optional
 
-from .two_scale_testbed import (ScaleEnd, TwoScaleLayout, TwoScaleTestbed, start_session,
-                                stop_process_groups)
+from .testbed_teardown import signals_deferred, stop_process_groups
+from .two_scale_testbed import (ScaleEnd, TwoScaleLayout, TwoScaleTestbed, report_leftovers,
+                                start_session)
 
 MASTER_PORT = 11311
 
@@ -43,8 +44,9 @@ class LoopbackBed:
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
-        self.teardown()
+    def __exit__(self, exc_type, exc, tb):
+        report_leftovers(self.teardown(), block_failed=exc_type is not None)
+        return False
 
     def address(self, scale: str) -> str:
         return "localhost"
@@ -52,15 +54,17 @@ class LoopbackBed:
     def uplink_interface(self, scale: str) -> str:
         return ""               # loopback: no interface of the link to watch
 
-
     def start(self, scale, argv, env=None, log_path=None, cpu_quota=True, stdout=None):
         proc = start_session(argv, env, log_path, stdout)
         self.processes.append(proc)
         return proc
 
-    def teardown(self, grace_s: float = 10.0):
-        stop_process_groups(self.processes, grace_s)
-        self.processes.clear()
+    def teardown(self, grace_s: float = 10.0) -> List[str]:
+        """Ends every process; returns those that did not end, in words (never raises)."""
+        with signals_deferred():
+            left = stop_process_groups(self.processes, grace_s)
+            self.processes.clear()
+        return left
 
 
 class NamespaceBed(TwoScaleTestbed):

@@ -1,18 +1,23 @@
 """The two-scale test bed on one Linux machine: network namespaces `robot` and `laptop` joined
 by a veth pair, the link shaped with tc tbf and taken down/up, each scale's CPU held by a cgroup
-v1 quota. Every command is an argv list (no shell); teardown is idempotent and leaves no
-namespace, qdisc or cgroup behind.
+v1 quota. Every command is an argv list (no shell); teardown is idempotent, never raises, and
+leaves no namespace, veth, cgroup or process behind, or names in one line what it could not remove.
 
 iproute2 and the cgroup filesystem are driven directly rather than through a library: pyroute2
 is not packaged for Debian's Python here, and these are a handful of well-known commands.
 """
 from dataclasses import dataclass
+import errno
 import fcntl
 import os
 import signal
 import subprocess
+import sys
 import time
 from typing import Dict, List, Optional, Sequence
+
+from .testbed_teardown import (attempt, remove_namespace, remove_veths, signal_quietly,
+                               signals_deferred, stop_process_groups)
 
 CGROUP_CPU_ROOT = "/sys/fs/cgroup/cpu"
 CFS_PERIOD_US = 100_000
@@ -102,24 +107,44 @@ class CpuQuota:
         self._write("tasks", pid)
 
     def pids(self) -> List[int]:
-        try:
-            with open(os.path.join(self.path, "tasks")) as f:
-                return [int(line) for line in f if line.strip()]
-        except FileNotFoundError:
-            return []
-
-    def remove(self):
-        """Moves leftover tasks to the parent group, then removes the group."""
-        if not os.path.isdir(self.path):
-            return
-        parent_tasks = os.path.join(os.path.dirname(self.path), "tasks")
-        for pid in self.pids():
+        """Every process and thread in the group (cgroup.procs and tasks)."""
+        found = set()
+        for name in ("cgroup.procs", "tasks"):
             try:
-                with open(parent_tasks, "w") as f:
-                    f.write(str(pid))
+                with open(os.path.join(self.path, name)) as f:
+                    found.update(int(line) for line in f if line.strip())
             except OSError:
-                pass        # already gone
-        os.rmdir(self.path)
+                pass            # the group is gone
+        return sorted(found)
+
+    def remove(self, leave_s: float = 1.0, deadline_s: float = 5.0,
+               poll_s: float = 0.05) -> Optional[str]:
+        """Removes the group; returns None, or what stopped it, in words (never raises).
+        Processes get `leave_s` to leave (the teardown has already asked them to end), then
+        the ones that linger are killed. rmdir is retried until `deadline_s`: a killed process
+        keeps the group busy (EBUSY) for a moment after it left `tasks`."""
+        start = time.monotonic()
+        pids: List[int] = []
+        while True:
+            if not os.path.isdir(self.path):
+                return None
+            pids = self.pids()
+            if pids and time.monotonic() - start >= leave_s:
+                for pid in pids:
+                    signal_quietly(pid, signal.SIGKILL)
+            if not pids:
+                try:
+                    os.rmdir(self.path)
+                    return None
+                except FileNotFoundError:
+                    return None
+                except OSError as e:
+                    if e.errno != errno.EBUSY:
+                        return f"cgroup {self.path} ({e.strerror})"
+            if time.monotonic() - start >= deadline_s:
+                held = f"processes {' '.join(map(str, pids))} still in it" if pids else "busy"
+                return f"cgroup {self.path} ({held} after {deadline_s:g} s)"
+            time.sleep(poll_s)
 
     def _write(self, name: str, value):
         with open(os.path.join(self.path, name), "w") as f:
@@ -170,7 +195,10 @@ class TwoScaleTestbed:
 
     def __enter__(self) -> "TwoScaleTestbed":
         self._lock = claim_layout(self.layout)
-        self.teardown()     # leftovers of an earlier run that was killed
+        left = self.teardown()     # leftovers of an earlier run that was killed
+        if left:
+            self._lock.close()
+            raise TwoScaleError("cannot set up: an earlier run left " + "; ".join(left))
         try:
             for argv in setup_commands(self.layout):
                 run(argv)
@@ -178,14 +206,17 @@ class TwoScaleTestbed:
                 quota.create()
         except BaseException:
             self.teardown()
+            self._lock.close()
             raise
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, exc_type, exc, tb):
         try:
-            self.teardown()
+            left = self.teardown()
         finally:
             self._lock.close()
+        report_leftovers(left, block_failed=exc_type is not None)
+        return False
 
     def end(self, scale: str) -> ScaleEnd:
         return next(e for e in self.layout.ends if e.scale == scale)
@@ -211,20 +242,37 @@ class TwoScaleTestbed:
         self.processes.append(proc)
         return proc
 
-    def teardown(self, grace_s: float = 5.0):
-        self._stop_processes(grace_s)
-        for end in self.layout.ends:
-            # Whatever still runs in a namespace (started by others) ends with it.
-            pids = run(["ip", "netns", "pids", end.namespace], check=False).stdout.split()
-            for pid in pids:
-                _signal_quietly(int(pid), signal.SIGKILL)
-            run(["ip", "netns", "del", end.namespace], check=False)
-        for quota in self.quotas.values():
-            quota.remove()
+    def teardown(self, grace_s: float = 5.0) -> List[str]:
+        """Ends every process, then removes the namespaces, the veth and the CPU groups. Never
+        raises: returns what it could not remove, in words (empty when nothing is left).
+        Safe to call again."""
+        left: List[str] = []
+        with signals_deferred():
+            attempt(left, "stopping processes",
+                    lambda: left.extend(stop_process_groups(self.processes, grace_s)))
+            self.processes.clear()
+            for end in self.layout.ends:
+                attempt(left, f"namespace {end.namespace}",
+                        lambda end=end: left.extend(remove_namespace(end.namespace)))
+            # A setup that failed before moving the veth's ends leaves them here, outside the
+            # namespaces, where deleting those does not remove them.
+            attempt(left, "veth", lambda: left.extend(
+                remove_veths([end.interface for end in self.layout.ends])))
+            for quota in self.quotas.values():
+                attempt(left, f"cgroup {quota.path}",
+                        lambda quota=quota: left.extend(filter(None, [quota.remove()])))
+        return left
 
-    def _stop_processes(self, grace_s: float):
-        stop_process_groups(self.processes, grace_s)
-        self.processes.clear()
+
+def report_leftovers(left: List[str], block_failed: bool):
+    """What a teardown could not remove, as one line: a TwoScaleError after a block that went
+    well; after one that failed, a line on stderr, since raising would hide the block's error."""
+    if not left:
+        return
+    message = "teardown left behind: " + "; ".join(left)
+    if not block_failed:
+        raise TwoScaleError(message)
+    print(f"test bed: {message}", file=sys.stderr, flush=True)
 
 
 def start_session(argv: List[str], env: Optional[Dict[str, str]], log_path: Optional[str],
@@ -238,31 +286,3 @@ def start_session(argv: List[str], env: Optional[Dict[str, str]], log_path: Opti
     finally:
         if log_path:
             out.close()
-
-
-def stop_process_groups(processes: List[subprocess.Popen], grace_s: float):
-    """SIGINT to every process group (roslaunch then stops its nodes), SIGKILL after grace_s."""
-    for proc in processes:
-        if proc.poll() is None:
-            _signal_group(proc.pid, signal.SIGINT)
-    deadline = time.monotonic() + grace_s
-    for proc in processes:
-        try:
-            proc.wait(timeout=max(0.0, deadline - time.monotonic()))
-        except subprocess.TimeoutExpired:
-            _signal_group(proc.pid, signal.SIGKILL)
-            proc.wait()
-
-
-def _signal_group(pid: int, sig: int):
-    try:
-        os.killpg(pid, sig)
-    except (ProcessLookupError, PermissionError):
-        pass
-
-
-def _signal_quietly(pid: int, sig: int):
-    try:
-        os.kill(pid, sig)
-    except (ProcessLookupError, PermissionError):
-        pass

@@ -164,8 +164,8 @@ class TestbedMonitor:
     def _on_status(self, msg):
         with self.lock:
             self.rec.navigation_status.append((self.now(), msg.data))
-        if msg.data.startswith("done") and self.exit_when_done:
-            say(f"t={self.now():6.1f} s  navigation: {msg.data}")
+        if msg.data.startswith("done") and self.exit_when_done and not self.done.is_set():
+            say(f"t={self.now():6.1f} s  navigation: {msg.data}")     # once: the run ends here
             self.done.set()
 
     # --- sampling -------------------------------------------------------------------------------

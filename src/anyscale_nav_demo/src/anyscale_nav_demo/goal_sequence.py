@@ -20,10 +20,26 @@ class GoalSequence:
         self.wait_started = None
         self.missed = []            # marker goals left after a timeout, unrecognised
         self.reached_times = []
+        self.reported = None        # the status line last handed out by status_change()
 
     @property
     def current(self):
         return self.goals[self.index] if self.state != DONE else None
+
+    def status(self):
+        """The status line navigation publishes: state and goals done, e.g. "drive 2/5"."""
+        return "%s %d/%d" % (self.state, self.index, len(self.goals))
+
+    def status_change(self):
+        """The status line if it changed since the last call, else None. The controller steps
+        at 10 Hz, and a status sent on every step reached its listeners (the test bed's
+        monitor printed "navigation: done 5/5") once per step; the topic is latched, so a
+        listener that joins later still gets the current line."""
+        line = self.status()
+        if line == self.reported:
+            return None
+        self.reported = line
+        return line
 
     def marker_seen(self, marker_id):
         self.seen.add(int(marker_id))

@@ -21,6 +21,7 @@ import sys
 
 import yaml
 
+from anyscale_core.testbed_record import colour_violations
 from anyscale_core.testbed_session import (LoopbackBed, NamespaceBed, TestbedSession,
                                            layout_with_cpu)
 from anyscale_core.two_scale_testbed import TwoScaleError, missing_capabilities
@@ -28,6 +29,9 @@ from anyscale_core.two_scale_testbed import TwoScaleError, missing_capabilities
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 WORLD_LAUNCH = os.path.join(ROOT, "launch", "testbed_world.launch")
 PREFIX = "[testbed] "
+# The end table marks a silence longer than its tolerance with the word VIOLATION; on a
+# terminal its line is red as well (the log file keeps the plain word). NO_COLOR turns it off.
+COLOUR = sys.stdout.isatty() and "NO_COLOR" not in os.environ
 
 
 def nav_demo_path(*parts) -> str:
@@ -162,7 +166,7 @@ def raise_interrupt(*_):
 
 def echo_monitor_lines(line: str):
     if line.startswith(PREFIX) or "[ERROR]" in line or "[FATAL]" in line:
-        print(line, flush=True)
+        print(colour_violations(line, COLOUR), flush=True)
 
 
 if __name__ == "__main__":

@@ -25,7 +25,8 @@ from std_msgs.msg import Float32, String
 
 from .model import ModelError, load_model
 from .ros_convert import EVENT_NAMES
-from .testbed_record import EventRecord, ProcessSample, TestbedRecord, format_summary
+from .testbed_record import (EventRecord, ProcessSample, TestbedRecord, colour_violations,
+                             format_summary, tolerance_violations)
 
 
 # python_standby's comm from its exec until it renames itself, and while it waits.
@@ -90,6 +91,8 @@ class TestbedMonitor:
             if c.publisher in movable and c.tolerance > 0:
                 self.outputs.setdefault(c.publisher, c.topic)
                 self.tolerances[c.topic] = max(self.tolerances.get(c.topic, 0.0), c.tolerance)
+        # In the record too: its violations can be read, and recomputed, without the model.
+        self.rec.outputs, self.rec.tolerances = dict(self.outputs), dict(self.tolerances)
         self.node_names = [n.name for n in self.model.nodes]
         self.master = rosgraph.Master(rospy.get_name())
         self.pose_topic = rospy.get_param("~pose_topic", "/amcl_pose")
@@ -197,11 +200,13 @@ class TestbedMonitor:
                 break
         self.rec.finished_t = self.now()
         self.save()
+        terminal = sys.stdout.isatty()     # on the test bed a pipe: run_testbed.py colours
         for line in format_summary(self.rec, self.outputs, self.tolerances).splitlines():
-            say(line)
+            say(colour_violations(line, terminal))
 
     def save(self):
         with self.lock:
+            self.rec.violations = tolerance_violations(self.rec)
             tmp = self.record_path + ".tmp"
             self.rec.save(tmp)
         os.replace(tmp, self.record_path)

@@ -1,7 +1,8 @@
 """What a test-bed run recorded, and the figures drawn from it: gaps on output topics around
-each migration, pose error against ground truth, how many live instances each migrated node
-had while the link could carry their traffic. Pure (no ROS): the monitor node fills a
-TestbedRecord, the system tests, the benchmarks and the end-of-run table read it."""
+each migration, silences longer than a connection's tolerance (violations), pose error against
+ground truth, how many live instances each migrated node had while the link could carry their
+traffic. Pure (no ROS): the monitor node fills a TestbedRecord, the system tests, the
+benchmarks and the end-of-run table read it."""
 from dataclasses import asdict, dataclass, field
 import bisect
 import json
@@ -32,6 +33,17 @@ class ProcessSample:
 
 
 @dataclass
+class Violation:
+    """A connection's output topic silent for longer than its tolerance Δ."""
+    topic: str
+    start_t: float          # its last message before the silence (monitor clock)
+    end_t: float            # its first message after it, or the run's end if none came
+    silence_s: float
+    tolerance_s: float
+    cause: str              # the moves, restarts and link changes around it, in words
+
+
+@dataclass
 class TestbedRecord:
     __test__ = False        # not a pytest class
     started_wall: float = 0.0
@@ -47,6 +59,9 @@ class TestbedRecord:
     master_publishers: List[Tuple[float, Dict[str, List[str]]]] = field(default_factory=list)
     navigation_status: List[Tuple[float, str]] = field(default_factory=list)
     finished_t: Optional[float] = None
+    outputs: Dict[str, str] = field(default_factory=dict)         # node -> its output topic
+    tolerances: Dict[str, float] = field(default_factory=dict)    # output topic -> Δ in s
+    violations: List[Violation] = field(default_factory=list)     # see tolerance_violations
 
     def save(self, path: str):
         with open(path, "w") as f:
@@ -57,8 +72,9 @@ class TestbedRecord:
         with open(path) as f:
             d = json.load(f)
         rec = TestbedRecord(**{k: v for k, v in d.items()
-                               if k not in ("events", "processes")})
+                               if k not in ("events", "processes", "violations")})
         rec.events = [EventRecord(**e) for e in d["events"]]
+        rec.violations = [Violation(**v) for v in d.get("violations", [])]
         rec.processes = [ProcessSample(**p) for p in d["processes"]]
         rec.mappings = [(t, m, p, o) for t, m, p, o in d["mappings"]]
         return rec
@@ -75,12 +91,29 @@ def longest_gap(times: Sequence[float], start: float, end: float) -> float:
 def gap_during(times: Sequence[float], start: float, end: float) -> float:
     """The longest silence that overlaps [start, end] (a move's window), from the last message
     before it to the first after it (inf if the topic never spoke again)."""
+    return max(b - a for a, b in silences_overlapping(times, start, end))
+
+
+def silences_overlapping(times: Sequence[float], start: float,
+                         end: float) -> List[Tuple[float, float]]:
+    """The silences (last message, next message) that overlap [start, end], in time order;
+    -inf / inf where the topic had not spoken before or never spoke again."""
     ordered = sorted(times)
     before = [t for t in ordered if t <= start][-1:] or [-math.inf]
     inside = [t for t in ordered if start < t <= end]
     after = [t for t in ordered if t > end][:1] or [math.inf]
     points = before + inside + after
-    return max(b - a for a, b in zip(points, points[1:]))
+    return list(zip(points, points[1:]))
+
+
+def silences_longer_than(times: Sequence[float], limit: float,
+                         end: float) -> List[Tuple[float, float]]:
+    """The silences longer than `limit` from the first message to `end`: (last message before,
+    first message after, or `end` if none came). Before its first message a topic is starting,
+    not silent."""
+    ordered = sorted(t for t in times if t <= end)
+    points = ordered + [end] if ordered else []
+    return [(a, b) for a, b in zip(points, points[1:]) if b - a > limit]
 
 
 def first_after(times: Sequence[float], moment: float) -> float:
@@ -142,30 +175,105 @@ def mapping_at(rec: TestbedRecord, t: float) -> Dict[str, str]:
 # After the new instance registered, its first output may take this long (a filter's first
 # update); the window of a move reaches this far past the registration.
 MOVE_SETTLE_S = 3.0
+# A silence may begin this long before the decision of the move it belongs to: a move back
+# forced by a link loss is decided after the link went, and the last message the link
+# carried came up to one period of the output at its freq_min before that (1 s for AR's
+# 1 Hz, 0.5 s for AMCL's 2 Hz).
+MOVE_LEAD_S = 1.0
 
 
 @dataclass(frozen=True)
 class MoveFigures:
     event: EventRecord
-    output_gap_s: float        # the longest silence on the node's output topic during the move;
-                               # NaN if the run ended before the move's window did
+    output_gap_s: float        # the longest silence on the node's output topic that this move
+                               # owns (see move_figures); NaN if the run ended before the
+                               # move's window did, or if it was decided in a silence it does
+                               # not own
     first_output_s: float      # decision -> first message on the output topic afterwards
+    silent_since_t: float = math.nan    # the output was already silent when the move was
+                                        # decided, since then (a silence this move does not own)
+
+
+def move_window(e: EventRecord) -> Tuple[float, float]:
+    """From the decision to MOVE_SETTLE_S after the new instance registered."""
+    settled = e.decided_t + (e.duration_s if math.isfinite(e.duration_s) else 0.0)
+    return e.decided_t, settled + MOVE_SETTLE_S
 
 
 def move_figures(rec: TestbedRecord, outputs: Dict[str, str]) -> List[MoveFigures]:
-    """For every migration of a node with a known output topic: the gap its subscriber saw."""
-    out = []
+    """For every migration of a node with a known output topic: the gap its subscriber saw.
+    A silence belongs to one move at most: the first one whose window it overlaps and that was
+    decided no more than MOVE_LEAD_S after it began. A later move in the same silence reports
+    since when the output was silent instead of counting the silence a second time."""
     end = rec.finished_t if rec.finished_t is not None else _last_time(rec)
-    for e in rec.events:
-        topic = outputs.get(e.node)
-        if e.kind not in ("migrate", "migrate_back") or topic is None:
-            continue
+    owned: Dict[str, set] = {}          # topic -> starts of the silences a move owns
+    figures = {}
+    moves = [e for e in rec.events if e.kind in ("migrate", "migrate_back") and e.node in outputs]
+    for e in sorted(moves, key=lambda e: e.decided_t):
+        topic = outputs[e.node]
         times = rec.receipts.get(topic, [])
-        settled = e.decided_t + (e.duration_s if math.isfinite(e.duration_s) else 0.0)
-        window_end = settled + MOVE_SETTLE_S
-        gap = gap_during(times, e.decided_t, window_end) if window_end <= end else math.nan
-        out.append(MoveFigures(e, gap, first_after(times, e.decided_t)))
-    return out
+        start, window_end = move_window(e)
+        first = first_after(times, e.decided_t)
+        if window_end > end:
+            figures[id(e)] = MoveFigures(e, math.nan, first)
+            continue
+        overlapping = silences_overlapping(times, start, window_end)
+        taken = owned.setdefault(topic, set())
+        mine = [(a, b) for a, b in overlapping if a >= start - MOVE_LEAD_S and a not in taken]
+        taken.update(a for a, _ in mine)
+        if overlapping[0] in mine:
+            gap = max(b - a for a, b in mine)
+            figures[id(e)] = MoveFigures(e, gap, first)
+        else:   # what follows in its window is the output coming back, not this move's gap
+            figures[id(e)] = MoveFigures(e, math.nan, first, overlapping[0][0])
+    return [figures[id(e)] for e in moves]
+
+
+def tolerance_violations(rec: TestbedRecord, outputs: Optional[Dict[str, str]] = None,
+                         tolerances: Optional[Dict[str, float]] = None) -> List[Violation]:
+    """Every silence of an output topic longer than its connection's tolerance Δ (the
+    record's own outputs and tolerances unless given), with what happened around it."""
+    outputs = rec.outputs if outputs is None else outputs
+    tolerances = rec.tolerances if tolerances is None else tolerances
+    end = rec.finished_t if rec.finished_t is not None else _last_time(rec)
+    found = []
+    for topic, tol in sorted(tolerances.items()):
+        if tol <= 0:
+            continue            # a critical connection: pinned, never moved, no Δ to keep
+        nodes = {n for n, t in outputs.items() if t == topic}
+        for a, b in silences_longer_than(rec.receipts.get(topic, []), tol, end):
+            found.append(Violation(topic, a, b, b - a, tol,
+                                   silence_cause(rec, nodes, a, b, ran_to_end=b >= end)))
+    return sorted(found, key=lambda v: v.start_t)
+
+
+def silence_cause(rec: TestbedRecord, nodes, start: float, end: float,
+                  ran_to_end: bool = False) -> str:
+    """What happened to the topic's publishers and the link from shortly before a silence
+    began to its end, in time order, in words."""
+    near = [(t, f"link {'back' if up else 'down'} at t={t:.1f} s")
+            for t, up in link_transitions(rec.bandwidth) if start - MOVE_LEAD_S <= t <= end]
+    for e in rec.events:
+        first, last = move_window(e)
+        if e.node in nodes and first <= end and last >= start - MOVE_LEAD_S:
+            move = f" {e.from_scale} -> {e.to_scale}" if e.from_scale else f" on {e.to_scale}"
+            near.append((e.decided_t, f"{e.kind} {e.node}{move} at t={e.decided_t:.1f} s "
+                                      f"({e.reason})"))
+    words = [w for _, w in sorted(near)] or ["no move, restart or link change of "
+                                             f"{', '.join(sorted(nodes)) or 'its publisher'}"]
+    if ran_to_end:
+        words.append("silent until the run ended")
+    return "; ".join(words)
+
+
+# The word that marks a violation in the end table: plain in a log file, and red where the
+# table is printed to a terminal (colour_violations).
+VIOLATION = "VIOLATION"
+
+
+def colour_violations(line: str, terminal: bool) -> str:
+    """The line in red if it reports a violation and goes to a terminal, else as it is."""
+    return f"\033[31m{line}\033[0m" if terminal and VIOLATION in line else line
 
 
 def format_summary(rec: TestbedRecord, outputs: Dict[str, str],
@@ -186,10 +294,12 @@ def format_summary(rec: TestbedRecord, outputs: Dict[str, str],
                      f"{'output gap':>10}  reason")
         for f in figures:
             e = f.event
+            since = (f"; output silent since t={f.silent_since_t:.1f} s, before this move"
+                     if math.isfinite(f.silent_since_t) else "")
             lines.append(f"  {e.decided_t:7.1f}  {e.node:<16} "
                          f"{e.from_scale + ' -> ' + e.to_scale:<20} "
                          f"{_seconds(e.duration_s):>10} {_seconds(f.output_gap_s):>10}  "
-                         f"{e.reason}")
+                         f"{e.reason}{since}")
     end = rec.finished_t or _last_time(rec)
     for topic, tol in sorted(tolerances.items()):
         times = rec.receipts.get(topic, [])
@@ -197,6 +307,11 @@ def format_summary(rec: TestbedRecord, outputs: Dict[str, str],
             gap = longest_gap(times, times[0], end)
             lines.append(f"{topic}: longest silence {gap:.2f} s (tolerance {tol:g} s) "
                          f"after its first message")
+    violations = tolerance_violations(rec, outputs, tolerances)
+    lines.append(f"silences longer than their tolerance: {len(violations) or 'none'}")
+    for v in violations:
+        lines.append(f"  {VIOLATION} {v.topic}: silent {v.silence_s:.2f} s > tolerance "
+                     f"{v.tolerance_s:g} s from t={v.start_t:.1f} to {v.end_t:.1f} s: {v.cause}")
     errors = pose_errors(rec.truth, rec.estimate)
     if errors.size:
         lines.append(f"AMCL position error vs ground truth: RMS {np.sqrt(np.mean(errors**2)):.3f}"

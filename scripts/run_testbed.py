@@ -10,6 +10,7 @@ Without root, namespaces or cgroups it says so and runs both scales on loopback,
 Run with the workspace sourced (scripts/run_demo.sh does that):
     sudo -E scripts/run_testbed.py                      # office floor, WiFi coverage model
     scripts/run_testbed.py --link schedule --schedule '[[0, 27], [40, 3], [60, 0], [75, 27]]'
+    sudo -E scripts/run_testbed.py --start-goal 1      # the same loop, from the world's goal 1
 """
 import argparse
 import datetime
@@ -25,6 +26,7 @@ from anyscale_core.testbed_record import colour_violations
 from anyscale_core.testbed_session import (LoopbackBed, NamespaceBed, TestbedSession,
                                            layout_with_cpu)
 from anyscale_core.two_scale_testbed import TwoScaleError, missing_capabilities
+from anyscale_nav_demo.goal_sequence import loop_from_goal
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 WORLD_LAUNCH = os.path.join(ROOT, "launch", "testbed_world.launch")
@@ -42,13 +44,25 @@ def nav_demo_path(*parts) -> str:
     return os.path.join(out.stdout.strip(), *parts)
 
 
-def world_start(world: str):
+def world_start(world: str, start_goal=None):
+    """(x, y, yaw) where the robot starts, and navigation's goals: the world's start and None
+    (navigation reads the world's goals itself), or with `start_goal` K, goal K's pose and the
+    loop from there."""
     path = nav_demo_path("maps", f"{world}_world.yaml")
     try:
         with open(path) as f:
-            return [float(v) for v in yaml.safe_load(f)["start"]]
+            world_file = yaml.safe_load(f)
+        if start_goal is None:
+            return [float(v) for v in world_file["start"]], None
+        goals = [[float(v) for v in g] for g in world_file["goals"]]
     except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as e:
-        sys.exit(f"run_testbed: --world {world}: cannot read the start pose from {path}: {e}")
+        sys.exit(f"run_testbed: --world {world}: cannot read the start pose and goals from "
+                 f"{path}: {e}")
+    try:
+        start, loop = loop_from_goal(goals, start_goal)
+    except ValueError as e:
+        sys.exit(f"run_testbed: --start-goal: {world}'s {e}")
+    return list(start), [list(g) for g in loop]
 
 
 def calibrated_cores(path: str):
@@ -70,6 +84,9 @@ def parse_args(argv):
                         "--schedule over time; unshaped: no shaping at all")
     p.add_argument("--schedule", default="[[0, 27]]",
                    help="[[t_s, Mbit/s], ...] for --link schedule; 0 Mbit/s = link down")
+    p.add_argument("--start-goal", type=int, default=None, metavar="K",
+                   help="start at goal K of the world's goal list (0 = the first) and do the "
+                        "loop from there, round to goal K (default: the world's start)")
     p.add_argument("--duration", type=float, default=0.0,
                    help="end after this many seconds (default: when the loop is done)")
     p.add_argument("--robot-cpu", type=float, default=None, metavar="CORES",
@@ -104,7 +121,7 @@ def main(argv=None) -> int:
         calibrated = calibrated_cores(nav_demo_path("config", "testbed_calibration.yaml"))
         robot_cpu = calibrated[0] if robot_cpu is None else robot_cpu
         laptop_cpu = calibrated[1] if laptop_cpu is None else laptop_cpu
-    x, y, yaw = world_start(args.world)
+    (x, y, yaw), goals = world_start(args.world, args.start_goal)
 
     missing = [] if args.loopback else missing_capabilities()
     loopback = args.loopback or bool(missing)
@@ -116,7 +133,8 @@ def main(argv=None) -> int:
               "are NOT limited, so this is not emulated WiFi. Migrations still happen for real.")
 
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
-    run_dir = os.path.abspath(os.path.join(args.out, f"{args.world}-{link}-{stamp}"))
+    start = "" if args.start_goal is None else f"-goal{args.start_goal}"
+    run_dir = os.path.abspath(os.path.join(args.out, f"{args.world}{start}-{link}-{stamp}"))
     record = os.path.join(run_dir, "record.json")
     bed = LoopbackBed() if loopback else NamespaceBed(layout_with_cpu(robot_cpu, laptop_cpu))
     print(PREFIX + f"world {args.world}, link {link}"
@@ -142,7 +160,8 @@ def main(argv=None) -> int:
                 f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}",
                 f"allocator:={args.allocator}", f"hysteresis_s:={args.hysteresis}",
                 f"uplink_interface:={bed.uplink_interface('robot')}",
-                f"warm_start:={str(not args.cold_start).lower()}"])
+                f"warm_start:={str(not args.cold_start).lower()}"]
+                + ([f"goals:={json.dumps(goals)}"] if goals else []))
             session.roslaunch("laptop", "laptop", [
                 "anyscale_nav_demo", "laptop.launch", f"model:={model}",
                 f"warm_start:={str(not args.cold_start).lower()}"])

@@ -6,6 +6,16 @@ from .geometry import wrap_angle
 DRIVE, FACE_MARKER, WAIT_MARKER, DONE = "drive", "face_marker", "wait_marker", "done"
 
 
+def loop_from_goal(goals, k):
+    """Where the robot starts, and its goals, for a run that starts at goal k of a loop: at
+    goal k's pose, then the goals after it in order and round to goal k itself, so the loop is
+    still complete. (A world's last goal is its start, so k = len - 1 is the usual run.)"""
+    goals = [tuple(g) for g in goals]
+    if not 0 <= k < len(goals):
+        raise ValueError("goal %d: the loop has goals 0-%d" % (k, len(goals) - 1))
+    return goals[k][:3], goals[k + 1:] + goals[:k + 1]
+
+
 class GoalSequence:
     """Goals [(x, y, yaw, marker_id or -1)]. A marker goal is done once its marker was
     recognised (on the way, or after facing it at the goal, waiting at most marker_timeout);

@@ -1,0 +1,152 @@
+#!/usr/bin/python3
+"""The tolerance bench (root): the main job's scenario, N times. Goal (issue 12): no connection's
+output silent for longer than its tolerance, 0 violations in 10 runs.
+
+Each run is scripts/run_testbed.py with the coverage link (the same code as the main job),
+started at a different goal of the world's loop: run k starts at goal k mod the number of
+goals and does the whole loop from there, so the link's outages meet the robot at different
+moments of its mission (seeded coverage will come with the evaluation issue, #13). It prints,
+per run, the path time, the migrations, the restarts, the longest silence of each connection's
+output against its tolerance and the violations with their cause (all read from the run's
+record.json), then a total; it writes them to DIR/tolerances.csv and DIR/tolerances.md. A run
+takes about 400 s on the office floor and needs the machine to itself. Run with the workspace
+sourced:
+    sudo -E /usr/bin/python3 tests/bench/bench_tolerances.py --runs 10
+"""
+import argparse
+import datetime
+import glob
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import yaml
+
+from anyscale_core.testbed_record import TestbedRecord
+from anyscale_core.tolerance_report import (format_markdown, format_table, row_cells, run_row,
+                                            topics_of, write_csv)
+from anyscale_core.two_scale_testbed import missing_capabilities
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+RUN_TESTBED = os.path.join(ROOT, "scripts", "run_testbed.py")
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter,
+                                epilog=__doc__.split("\n\n", 1)[1])
+    p.add_argument("--runs", type=int, default=10, help="how many runs (10)")
+    p.add_argument("--world", default="office_floor", help="office_floor (default), small_loop")
+    p.add_argument("--allocator", default="paper", help="paper (default), paper_local, optimal")
+    p.add_argument("--first-start", type=int, default=0, metavar="K",
+                   help="run k starts at goal (K + k) mod the number of goals (K = 0)")
+    p.add_argument("--duration", type=float, default=0.0,
+                   help="end each run after this many seconds (default: when the loop is done)")
+    p.add_argument("--out", default=None,
+                   help="results directory (default: results/bench_tolerances/<date-time>)")
+    args = p.parse_args(argv)
+    if args.runs < 1:
+        p.error("--runs: at least 1")
+    return args
+
+
+def goal_count(world: str) -> int:
+    found = subprocess.run(["rospack", "find", "anyscale_nav_demo"], capture_output=True,
+                           text=True)
+    if found.returncode != 0:
+        sys.exit("bench: anyscale_nav_demo not found; source devel/setup.bash first")
+    path = os.path.join(found.stdout.strip(), "maps", f"{world}_world.yaml")
+    try:
+        with open(path) as f:
+            return len(yaml.safe_load(f)["goals"])
+    except (OSError, KeyError, TypeError, yaml.YAMLError) as e:
+        sys.exit(f"bench: --world {world}: cannot read its goals from {path}: {e}")
+
+
+def run_once(args, start_goal: int, out_dir: str) -> int:
+    """One run of the main job's scenario; its console output goes to out_dir/console.log.
+    Returns run_testbed.py's exit code."""
+    argv = [sys.executable, RUN_TESTBED, "--world", args.world, "--link", "coverage",
+            "--allocator", args.allocator, "--start-goal", str(start_goal),
+            "--duration", str(args.duration), "--out", out_dir]
+    os.makedirs(out_dir, exist_ok=True)
+    with open(os.path.join(out_dir, "console.log"), "wb") as log:
+        # A session of its own: Ctrl-C reaches the bench only, which passes on exactly one
+        # SIGINT, so the run tears its test bed down (killing it would leave the bed behind).
+        proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
+                                start_new_session=True)
+        try:
+            return proc.wait()
+        except KeyboardInterrupt:
+            proc.send_signal(signal.SIGINT)
+            wait_through_interrupts(proc)
+            raise
+
+
+def wait_through_interrupts(proc: subprocess.Popen):
+    """Waits for the run to end its teardown (bounded), whatever Ctrl-C comes meanwhile."""
+    while True:
+        try:
+            proc.wait()
+            return
+        except KeyboardInterrupt:
+            print("bench: still removing the test bed of the run ...", flush=True)
+
+
+def load_record(out_dir: str):
+    found = sorted(glob.glob(os.path.join(out_dir, "*", "record.json")))
+    if not found:
+        return None
+    try:
+        return TestbedRecord.load(found[-1])
+    except (OSError, ValueError, TypeError, KeyError) as e:
+        print(f"bench: {found[-1]}: unreadable record ({e})", flush=True)
+        return None
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    missing = missing_capabilities()
+    if missing:
+        sys.exit("bench: the test bed needs " + "; ".join(missing))
+    goals = goal_count(args.world)
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    out = os.path.abspath(args.out or os.path.join(ROOT, "results", "bench_tolerances", stamp))
+    os.makedirs(out, exist_ok=True)
+    print(f"bench: {args.runs} runs on {args.world}, coverage link, allocator {args.allocator}; "
+          f"results in {out}", flush=True)
+    rows = []
+    try:
+        for k in range(args.runs):
+            start_goal = (args.first_start + k) % goals
+            run_dir = os.path.join(out, f"run{k + 1:02d}")
+            print(f"[{k + 1}/{args.runs}] start at goal {start_goal}, log {run_dir}/console.log",
+                  flush=True)
+            began = time.monotonic()
+            code = run_once(args, start_goal, run_dir)
+            rows.append(run_row(k + 1, start_goal, code, load_record(run_dir)))
+            cells = row_cells(rows[-1], topics_of(rows))
+            print(f"[{k + 1}/{args.runs}] done in {time.monotonic() - began:.0f} s: exit "
+                  f"{code}, path time {cells[3]}, {rows[-1].migrations} migrations, "
+                  f"{rows[-1].restarts} restarts, {len(rows[-1].violations)} violations",
+                  flush=True)
+            for v in rows[-1].violations:
+                print(f"    VIOLATION {v.topic} silent {v.silence_s:.2f} s > tolerance "
+                      f"{v.tolerance_s:g} s at t={v.start_t:.1f} s: {v.cause}", flush=True)
+    except KeyboardInterrupt:
+        print("bench: interrupted; the table has the runs that ended", flush=True)
+    if not rows:
+        return 130
+    print(format_table(rows), flush=True)
+    write_csv(os.path.join(out, "tolerances.csv"), rows)
+    with open(os.path.join(out, "tolerances.md"), "w") as f:
+        f.write(format_markdown(rows, f"Tolerance bench: {len(rows)} runs on {args.world}, "
+                                      f"coverage link, allocator {args.allocator}"))
+    print(f"bench: {out}/tolerances.csv and tolerances.md", flush=True)
+    return 0 if all(not r.violations for r in rows) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -65,8 +65,8 @@ def test_the_table_flags_each_violation_with_its_cause_and_ends_with_a_total():
         "VIOLATION run 2: /amcl_pose silent 3.50 s > tolerance 2 s from t=100.0 s: link down at "
         "t=100.0 s; migrate_back amcl robot -> laptop at t=100.2 s (link to laptop down); link "
         "back at t=101.0 s"]
-    assert lines[-1] == ("total: 3 runs, 1 violations in 1 runs, 1 loops done, median path "
-                         "time 285 s, 3 migrations, 1 restarts")
+    assert lines[-1] == ("total: 3 runs, 1 violations in 1 runs, 1 loops done (median path "
+                         "time 285 s), 3 migrations, 1 restarts")
 
 
 def test_csv_and_markdown_copies(tmp_path):

@@ -92,9 +92,9 @@ def total_line(rows: Sequence[RunRow]) -> str:
     violations = sum(len(r.violations) for r in rows)
     with_some = sum(bool(r.violations) for r in rows)
     times = [r.path_time_s for r in rows if not math.isnan(r.path_time_s)]
-    path = f"median path time {statistics.median(times):.0f} s" if times else "no loop done"
+    path = f" (median path time {statistics.median(times):.0f} s)" if times else ""
     return (f"total: {len(rows)} runs, {violations} violations in {with_some} runs, "
-            f"{len(times)} loops done, {path}, {sum(r.migrations for r in rows)} migrations, "
+            f"{len(times)} loops done{path}, {sum(r.migrations for r in rows)} migrations, "
             f"{sum(r.restarts for r in rows)} restarts")
 
 

@@ -1,13 +1,15 @@
 """Scale-agnostic means any node: a stock Debian node (topic_tools' relay, C++), declared in a
 small model, migrates over the two-scale test bed's veth, comes back when the link drops and
-goes out again after T, with one live instance at a time while both scales can talk."""
+goes out again after T, with one live instance at a time while both scales can talk (two only
+during a planned move's overlap: make before break)."""
 import os
 import subprocess
 
 import pytest
 
 from anyscale_core.testbed_record import (TestbedRecord, duplicate_instances, first_after,
-                                          link_transitions, longest_gap, mapping_at)
+                                          handover_windows, link_transitions, longest_gap,
+                                          mapping_at)
 from anyscale_core.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -79,9 +81,11 @@ def test_the_relays_output_never_goes_silent_longer_than_its_tolerance(run, link
 
 def test_one_relay_instance_while_the_link_is_up_also_after_the_partition_heals(run, link_times):
     up_at = link_times[1]
-    assert duplicate_instances(run.processes, ["relay"]) == []
+    assert duplicate_instances(run.processes, ["relay"], run.events) == []
     healed = [s for s in run.processes if s.t > up_at]
-    assert healed and all(len(s.instances["relay"]) <= 1 for s in healed)
+    assert healed and duplicate_instances(healed, ["relay"], run.events) == []
     assert len(healed[-1].instances["relay"]) == 1
+    overlaps = handover_windows(run.events).get("relay", [])
     for t, publishers in run.master_publishers:
-        assert len(publishers.get("/chatter_relay", [])) <= 1, (t, publishers)
+        if not any(a <= t <= b for a, b in overlaps):
+            assert len(publishers.get("/chatter_relay", [])) <= 1, (t, publishers)

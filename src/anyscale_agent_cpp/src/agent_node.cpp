@@ -218,12 +218,12 @@ void AgentNode::onGraph(const ros::SteadyTimerEvent&)
   for (const auto& p : supervisor_.snapshot())
   {
     if (p.pid != 0 && p.state != ProcState::Standby)
-      own.insert(p.name);
+      own.insert(rosName(p.name));
     if (p.state != ProcState::Starting)
       continue;
     // The registered process may be a child of the one we started (a wrapper script), so any
     // member of its process group counts.
-    const auto reg = graph_.lookup(p.name);
+    const auto reg = graph_.lookup(rosName(p.name));
     if (reg && reg->host == graph_.host() && reg->pid > 0 && (reg->pid == p.pid || ::getpgid(reg->pid) == p.pid))
       supervisor_.markRunning(p.name);
   }
@@ -232,7 +232,14 @@ void AgentNode::onGraph(const ros::SteadyTimerEvent&)
     // The master tells the older of two same-name nodes to shut down. If someone alive holds
     // the name now, ours was replaced; a stale entry of our dead process does not answer.
     const auto info = supervisor_.info(name);
-    const auto reg = graph_.lookup(name);
+    if (info && info->pid != 0)
+    {
+      // Started again (the decision node restarts a node at once) before this check ran.
+      ROS_WARN("%s exited by itself and was started again (pid %d); log: %s", name.c_str(), info->pid,
+               info->log_file.c_str());
+      continue;
+    }
+    const auto reg = graph_.lookup(rosName(name));
     if (info && reg && reg->pid != 0)
     {
       supervisor_.setFinalState(name, ProcState::Replaced);
@@ -329,6 +336,7 @@ std::vector<anyscale_msgs::NodeProcess> AgentNode::nodeProcesses()
   {
     anyscale_msgs::NodeProcess m;
     m.name = p.name;
+    m.instance = rosName(p.name);
     m.pid = p.pid;
     m.state = toMsgState(p.state);
     m.exit_code = p.exit_code;

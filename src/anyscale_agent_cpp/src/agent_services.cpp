@@ -77,13 +77,25 @@ bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::S
   try
   {
     const std::string exe = resolveExecutable(decl->package, decl->type, catkinPrefixes(std::getenv("CMAKE_PREFIX_PATH")), locate);
-    argv = buildArgv(*decl, exe, locate);
+    argv = buildArgv(*decl, exe, locate, instanceSuffix(scale_, is_master_));
     if (const auto running = supervisor_.info(name); running && running->pid != 0 && !isStandby(running))
     {
-      res.message = "refused: " + name + " is already running here (pid " + std::to_string(running->pid) + ")";
+      // Starting is idempotent: the decision node asks for a node where it must run, and a
+      // planned move that a link loss interrupts asks for the old instance it had not stopped
+      // yet. A node being stopped cannot be taken over.
+      if (running->state == ProcState::Stopping)
+      {
+        res.message = "refused: " + name + " is being stopped here (pid " + std::to_string(running->pid) + ")";
+        return true;
+      }
+      std::lock_guard<std::mutex> lock(leases_mutex_);
+      leases_.grant(name, steadyNow(), req.lease_s);
+      res.success = true;
+      res.pid = running->pid;
+      res.message = name + " is already running here (pid " + std::to_string(running->pid) + ")";
       return true;
     }
-    setNodeParams(decl->name, decl->params, overrides, locate, clear_params_);
+    setNodeParams(rosName(name).substr(1), decl->params, overrides, locate, clear_params_, decl->name);
   }
   catch (const ModelError& e)
   {
@@ -164,7 +176,7 @@ bool AgentNode::onStop(anyscale_msgs::StopNode::Request& req, anyscale_msgs::Sto
   bool left_master = false;
   if (req.sigint_timeout_s > 0.0f && before->state == ProcState::Running)
     while (!supervisor_.waitGone(name, 0.03) && std::chrono::steady_clock::now() - stop_began < std::chrono::duration<double>(limit))
-      if (link_->stats().up && !graph_.inSystemState(name))
+      if (link_->stats().up && !graph_.inSystemState(rosName(name)))
       {
         left_master = supervisor_.killNow(name);
         break;
@@ -235,7 +247,7 @@ std::vector<std::string> AgentNode::standbyArgv(const NodeDecl& decl)
   if (!isPythonScript(exe))
     throw ModelError(exe + " is not a Python script (a warm standby pre-imports a rospy node)");
   std::vector<std::string> argv{resolveExecutable("anyscale_agent_cpp", "python_standby", prefixes, locate)};
-  for (auto& a : buildArgv(decl, exe, locate))
+  for (auto& a : buildArgv(decl, exe, locate, instanceSuffix(scale_, is_master_)))
     argv.push_back(std::move(a));
   return argv;
 }

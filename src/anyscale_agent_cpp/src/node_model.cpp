@@ -102,6 +102,9 @@ NodeModel NodeModel::parse(const YAML::Node& root, const std::string& source)
     if (!isValidNodeName(d.name))
       throw ModelError(where + ": 'name' is not a valid ROS node name (letters, digits, '_', '/'-separated, "
                                "no leading '/')");
+    if (d.name.find(kInstanceSeparator) != std::string::npos)
+      throw ModelError(where + ": 'name' must not contain '" + kInstanceSeparator +
+                       "' (reserved for instance names on remote scales, NAME__SCALE)");
     if (model.nodes_.count(d.name))
       throw ModelError(where + ": declared twice");
     const YAML::Node launch = n["launch"];
@@ -250,7 +253,18 @@ std::vector<std::string> catkinPrefixes(const char* cmake_prefix_path)
   return out;
 }
 
-std::vector<std::string> buildArgv(const NodeDecl& decl, const std::string& executable, const PackageLocator& locate)
+std::string instanceSuffix(const std::string& scale, bool on_master)
+{
+  return on_master ? "" : kInstanceSeparator + scale;
+}
+
+std::string instanceName(const std::string& declared, const std::string& scale, bool on_master)
+{
+  return declared + instanceSuffix(scale, on_master);
+}
+
+std::vector<std::string> buildArgv(const NodeDecl& decl, const std::string& executable, const PackageLocator& locate,
+                                   const std::string& name_suffix)
 {
   std::vector<std::string> argv{executable};
   for (const auto& a : decl.args)
@@ -260,7 +274,7 @@ std::vector<std::string> buildArgv(const NodeDecl& decl, const std::string& exec
   const auto slash = decl.name.rfind('/');
   if (slash != std::string::npos)
     argv.push_back("__ns:=/" + decl.name.substr(0, slash));
-  argv.push_back("__name:=" + decl.name.substr(slash == std::string::npos ? 0 : slash + 1));
+  argv.push_back("__name:=" + decl.name.substr(slash == std::string::npos ? 0 : slash + 1) + name_suffix);
   return argv;
 }
 

@@ -85,7 +85,8 @@ XmlRpc::XmlRpcValue yamlToXmlRpc(const YAML::Node& node, const PackageLocator& l
 }
 
 void setNodeParams(const std::string& node_name, const YAML::Node& params,
-                   const std::map<std::string, std::string>& overrides, const PackageLocator& locate, bool clear_first)
+                   const std::map<std::string, std::string>& overrides, const PackageLocator& locate, bool clear_first,
+                   const std::string& copy_from)
 {
   const std::string ns = "/" + node_name;
   std::vector<std::pair<std::string, XmlRpc::XmlRpcValue>> values;
@@ -112,6 +113,10 @@ void setNodeParams(const std::string& node_name, const YAML::Node& params,
   }
   if (clear_first && ros::param::has(ns))
     ros::param::del(ns);
+  XmlRpc::XmlRpcValue declared;
+  if (!copy_from.empty() && copy_from != node_name && ros::param::get("/" + copy_from, declared) &&
+      declared.getType() == XmlRpc::XmlRpcValue::TypeStruct)
+    ros::param::set(ns, declared);
   for (const auto& [key, value] : values)
     ros::param::set(ns + "/" + key, value);
 }

@@ -46,7 +46,8 @@ class AgentServicesTest(unittest.TestCase):
             self.assertTrue(wait_for(lambda: self.agent.node("/" + node).state == NodeProcess.RUNNING, 10.0))
             info = self.agent.node("/" + node)
             self.assertTrue(os.path.exists(info.log_file), info.log_file)
-            self.assertEqual(self._start(node).success, False)  # already running
+            again = self._start(node)                     # already running: its pid, no second process
+            self.assertEqual((again.success, again.pid), (True, res.pid), again.message)
             stop = self.agent.stop(node=node, wait=True)
             self.assertTrue(stop.success, stop.message)
             self.assertFalse(alive(res.pid))
@@ -165,7 +166,8 @@ class AgentServicesTest(unittest.TestCase):
                     res = other.start(node=node, param_overrides=[], lease_s=0.0)
                     self.assertTrue(res.success, res.message)
                     pids.append(res.pid)
-                self.assertTrue(wait_for(lambda: registered_pid("/burner"), 20.0))
+                # Not the master scale's agent: its instances run as NAME__SCALE.
+                self.assertTrue(wait_for(lambda: registered_pid("/burner__" + scale), 20.0))
                 standby = wait_for(lambda: self._standby("/warm_talker", other), 20.0)
                 self.assertTrue(standby)
                 pids.append(standby.pid)

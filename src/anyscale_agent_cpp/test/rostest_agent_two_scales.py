@@ -1,17 +1,16 @@
 #!/usr/bin/python3
-"""rostest: two agents on one box: link statistics up and down, and a node replaced by a
-same-name start on the other scale."""
+"""rostest: two agents on one box: link statistics up and down, and one node's instances on
+both scales side by side under their per-scale names."""
 import math
 import os
 import subprocess
 import sys
-import time
 import unittest
 
 import rospy
 import rostest
 from anyscale_msgs.msg import NodeProcess
-from std_msgs.msg import String
+from diagnostic_msgs.msg import KeyValue
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from agent_test_util import Agent, registered_pid, wait_for  # noqa: E402
@@ -58,26 +57,41 @@ class TwoScalesTest(unittest.TestCase):
         self._start_master()
         self.assertTrue(wait_for(lambda: self._link().up, 15.0), "link did not come back")
 
-    def test_same_name_elsewhere_replaces(self):
-        # A rospy node: an old roscpp node, while shutting down, bumps the new one off the
-        # master as well (ros/ros_comm#2018), so both end; see the README.
+    def test_instances_on_two_scales_run_side_by_side_under_their_own_names(self):
+        # The master's same-name rule would end the robot's instance when the laptop's
+        # registered (and across a partition, the live one): a remote instance runs as
+        # NAME__SCALE, with the declared node's private parameters copied under that name.
         self._start_master()
         robot = Agent("robot")
         first = robot.start(node="talker_py", param_overrides=[], lease_s=0.0)
         self.assertTrue(first.success, first.message)
+        rospy.set_param("/talker_py/set_by_a_launch_file", 3)
         self.assertEqual(wait_for(lambda: registered_pid("/talker_py"), 20.0), first.pid)
-        rospy.wait_for_message("/py_chatter", String, timeout=10.0)
         self.assertTrue(wait_for(lambda: robot.node("/talker_py").state == NodeProcess.RUNNING, 10.0))
-        second = self.laptop.start(node="talker_py", param_overrides=[], lease_s=10.0)
+        second = self.laptop.start(node="talker_py", param_overrides=[KeyValue(key="rate", value="12.5")],
+                                   lease_s=10.0)
         self.assertTrue(second.success, second.message)
         try:
-            self.assertEqual(wait_for(lambda: registered_pid("/talker_py") == second.pid and second.pid, 20.0),
-                             second.pid)
-            self.assertTrue(wait_for(lambda: robot.node("/talker_py").state == NodeProcess.REPLACED, 10.0),
-                            "state %d" % robot.node("/talker_py").state)
+            self.assertEqual(wait_for(lambda: registered_pid("/talker_py__laptop"), 20.0), second.pid)
+            self.assertEqual(self.laptop.node("/talker_py").instance, "/talker_py__laptop")
+            self.assertEqual(rospy.get_param("/talker_py__laptop/set_by_a_launch_file"), 3)
+            self.assertEqual(rospy.get_param("/talker_py__laptop/rate"), 12.5)
+            self.assertEqual(rospy.get_param("/talker_py/rate"), 20.0)        # the robot's own
+            # Both publish; the robot's instance is neither replaced nor shut down.
+            callers = set()
+            sub = rospy.Subscriber("/py_chatter", rospy.AnyMsg,
+                                   lambda m: callers.add(m._connection_header["callerid"]))
+            self.assertTrue(wait_for(lambda: callers >= {"/talker_py", "/talker_py__laptop"}, 10.0), callers)
+            sub.unregister()
+            self.assertEqual(registered_pid("/talker_py"), first.pid)
+            self.assertEqual(robot.node("/talker_py").state, NodeProcess.RUNNING)
+            # A start of a node already running is answered with its pid, nothing started.
+            again = self.laptop.start(node="talker_py", param_overrides=[], lease_s=10.0)
+            self.assertEqual((again.success, again.pid), (True, second.pid), again.message)
         finally:
             self.laptop.stop(node="talker_py", wait=True)
             robot.stop(node="talker_py", wait=True)
+            rospy.delete_param("/talker_py")
 
 
 if __name__ == "__main__":

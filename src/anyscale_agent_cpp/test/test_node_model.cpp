@@ -67,6 +67,31 @@ TEST(NodeModel, ArgvHasArgsRemapsAndName)
   EXPECT_EQ(cam, (std::vector<std::string>{"/y/camera.py", "__ns:=/robot", "__name:=camera"}));
 }
 
+TEST(NodeModel, InstancesOnRemoteScalesRunUnderTheirScalesName)
+{
+  EXPECT_EQ(instanceName("/amcl", "robot", true), "/amcl");
+  EXPECT_EQ(instanceName("/amcl", "laptop", false), "/amcl__laptop");
+  EXPECT_EQ(instanceName("ns/amcl", "server", false), "ns/amcl__server");
+  EXPECT_NE(instanceName("/amcl", "laptop", false), instanceName("/amcl", "server", false));
+  const auto m = NodeModel::parse(YAML::Load(kModel), "test.yaml");
+  const auto argv = buildArgv(*m.find("robot/camera"), "/y/camera.py", locate, instanceSuffix("laptop", false));
+  EXPECT_EQ(argv, (std::vector<std::string>{"/y/camera.py", "__ns:=/robot", "__name:=camera__laptop"}));
+}
+
+TEST(NodeModel, DoubleUnderscoreIsReservedForInstanceNames)
+{
+  const char* yaml = "nodes: [{name: amcl__laptop, launch: {package: p, type: t}}]";
+  try
+  {
+    NodeModel::parse(YAML::Load(yaml), "m.yaml");
+    FAIL() << "a declared name could collide with an instance name";
+  }
+  catch (const ModelError& e)
+  {
+    EXPECT_NE(std::string(e.what()).find("reserved for instance names"), std::string::npos) << e.what();
+  }
+}
+
 TEST(NodeModel, ErrorsNameTheNodeAndKey)
 {
   auto error_of = [](const std::string& yaml) {

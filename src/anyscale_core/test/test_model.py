@@ -30,6 +30,7 @@ BAD_MODELS = [
     (("network", "max_bandwidth_mbps"), "fast", "network.max_bandwidth_mbps", "number"),
     (("nodes", 1, "name"), "laser", "nodes[1].name", "duplicate node name"),
     (("nodes", 1, "name"), "bad name", "nodes[1].name", "ROS node name"),
+    (("nodes", 9, "name"), "amcl__laptop", "nodes[9].name", "reserved for the names instances"),
     (("nodes", 9, "cpu_usage", "robot"), 150, "nodes[9] (amcl).cpu_usage.robot", "<= 100"),
     (("nodes", 9, "cpu_usage", "robot"), -5, "nodes[9] (amcl).cpu_usage.robot", ">= 0"),
     (("nodes", 9, "cpu_usage", "server"), 10, "nodes[9] (amcl).cpu_usage.server",
@@ -90,3 +91,12 @@ def test_missing_file(tmp_path):
 def test_not_a_mapping():
     with pytest.raises(ModelError, match="expected a mapping, got list"):
         parse_model([1, 2], "list.yaml")
+
+
+def test_instance_names_and_output_topics(testbed_dict):
+    model = parse_model(testbed_dict, "testbed.yaml")
+    assert model.instance_name("amcl", "robot") == "/amcl"
+    assert model.instance_name("amcl", "laptop") == "/amcl__laptop"
+    assert model.output_topics("amcl") == ("/amcl_pose",)
+    assert model.output_topics("laser") == ("/scan",)      # two connections, one topic
+    assert model.output_topics("navigation") == ()

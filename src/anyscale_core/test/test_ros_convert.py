@@ -128,9 +128,11 @@ def test_params_defaults_and_errors():
 def test_scale_report_names_the_nodes_that_ended_and_how():
     msg = status()
     msg.nodes += [NodeProcess(name="/ekf", state=NodeProcess.EXITED, exit_code=-1, exit_signal=11),
-                  NodeProcess(name="/navigation", state=NodeProcess.EXITED, exit_code=1),
+                  NodeProcess(name="/navigation", state=NodeProcess.EXITED, exit_code=1,
+                              log_file="/logs/navigation.log"),
                   NodeProcess(name="/user", state=NodeProcess.EXITED, exit_code=0),
                   NodeProcess(name="/amcl", state=NodeProcess.EXITED, exit_code=1)]
     r = conv.scale_report_from_msg(msg, 0.0, ["amcl", "ekf", "navigation", "user", "amcl_gone"])
     # /amcl has a live instance; /amcl_gone's lease expired (the decision node's doing).
-    assert r.ended == {"ekf": "signal 11", "navigation": "exit code 1", "user": "exit code 0"}
+    assert r.ended == {"ekf": "signal 11", "navigation": "exit code 1, log /logs/navigation.log",
+                       "user": "exit code 0"}

@@ -10,6 +10,8 @@ from anyscale_core.testbed_monitor_ros import node_processes
 STANDBY = os.path.join(os.path.dirname(__file__), "..", "..", "anyscale_agent_cpp", "scripts",
                        "python_standby")
 MASTER = "http://census-test-%d:11311" % os.getpid()
+# census_node on the master scale, census_node__laptop on a remote one: one node.
+NODE = {"census_node": "census_node", "census_node__laptop": "census_node"}
 
 
 def wait_for(predicate, timeout_s=10.0):
@@ -29,17 +31,18 @@ def spawn(args, master=MASTER, **kw):
 def test_counts_processes_of_this_master_by_their_node_name(tmp_path):
     sleeper = [sys.executable, "-c", "import time; time.sleep(30)"]
     ours = spawn(sleeper + ["__name:=census_node"])
+    remote = spawn(sleeper + ["__name:=census_node__laptop"])
     other_system = spawn(sleeper + ["__name:=census_node"], master="http://elsewhere:11311")
     try:
-        assert wait_for(lambda: len(node_processes(["census_node"], MASTER)["census_node"]) == 1)
-        assert node_processes(["census_node"], MASTER)["census_node"] == \
-            [os.readlink(f"/proc/{ours.pid}/ns/net")]
-        assert node_processes(["other"], MASTER) == {"other": []}
+        assert wait_for(lambda: len(node_processes(NODE, MASTER)["census_node"]) == 2)
+        assert node_processes(NODE, MASTER)["census_node"] == \
+            [os.readlink(f"/proc/{p.pid}/ns/net") for p in (ours, remote)]
+        assert node_processes({"other": "other"}, MASTER) == {"other": []}
     finally:
-        for p in (ours, other_system):
+        for p in (ours, remote, other_system):
             p.kill()
             p.wait()
-    assert node_processes(["census_node"], MASTER)["census_node"] == []
+    assert node_processes(NODE, MASTER)["census_node"] == []
 
 
 def test_a_warm_standby_counts_once_started(tmp_path):
@@ -49,12 +52,12 @@ def test_a_warm_standby_counts_once_started(tmp_path):
     # instant its comm is the standby's file name.
     standby = spawn([STANDBY, str(script), "__name:=census_warm"], stdin=subprocess.PIPE)
     try:
-        assert node_processes(["census_warm"], MASTER)["census_warm"] == []
+        assert node_processes({"census_warm": "census_warm"}, MASTER)["census_warm"] == []
         assert wait_for(lambda: open(f"/proc/{standby.pid}/comm").read().startswith("standby:"))
-        assert node_processes(["census_warm"], MASTER)["census_warm"] == []
+        assert node_processes({"census_warm": "census_warm"}, MASTER)["census_warm"] == []
         standby.stdin.write(b"start\n")
         standby.stdin.close()
-        assert wait_for(lambda: len(node_processes(["census_warm"], MASTER)["census_warm"]) == 1)
+        assert wait_for(lambda: len(node_processes({"census_warm": "census_warm"}, MASTER)["census_warm"]) == 1)
     finally:
         standby.kill()
         standby.wait()

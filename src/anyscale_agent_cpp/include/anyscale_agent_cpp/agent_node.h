@@ -62,6 +62,12 @@ private:
   void keepStandbysReady();
   std::vector<std::string> standbyArgv(const NodeDecl& decl);
   std::string logFile(const std::string& node) const;  // <log_dir>/<name with '/' as '.'>.log
+  // The name a node runs under on this scale (see instanceName): the supervisor keeps the
+  // declared name, the master and the graph know this one.
+  std::string rosName(const std::string& qualified_name) const
+  {
+    return instanceName(qualified_name, scale_, is_master_);
+  }
 
   std::vector<anyscale_msgs::NodeProcess> nodeProcesses();
   void diagnoseNodes(diagnostic_updater::DiagnosticStatusWrapper& stat);

@@ -71,9 +71,26 @@ std::string resolveExecutable(const std::string& package, const std::string& typ
 // workspace (catkin/workspace.py get_workspaces()).
 std::vector<std::string> catkinPrefixes(const char* cmake_prefix_path);
 
+// The name a node's instance registers under on a scale: the declared name on the master scale,
+// "<declared>__<scale>" on any other. The ROS master shuts down the older of two processes that
+// register one name, and across a partition that rule ends the wrong one: a request a dead
+// remote instance sent before the link went (a TCP retransmission, delivered once the link is
+// back) hands the name to the dead instance and shuts down the live one on the robot. With a
+// name per scale, instances on different scales never compete for a name, so a stale request
+// can only ever touch its own scale's name; and a planned move can start the new instance
+// while the old one still runs (make before break). Works on plain and qualified names.
+std::string instanceName(const std::string& declared, const std::string& scale, bool on_master);
+// What instanceName appends: "" on the master scale, "__<scale>" elsewhere.
+std::string instanceSuffix(const std::string& scale, bool on_master);
+
+// "__" in a declared name would let it collide with another node's instance name.
+constexpr const char* kInstanceSeparator = "__";
+
 // The command line of a declared node: executable, args, remaps "from:=to", and the name
-// given as __name (plus __ns for a namespaced name). Parameters are not on the command line;
-// the ROS layer sets them on the parameter server first, as roslaunch does.
-std::vector<std::string> buildArgv(const NodeDecl& decl, const std::string& executable, const PackageLocator& locate);
+// given as __name (plus __ns for a namespaced name), with `name_suffix` appended to the base
+// name (an instance name, see instanceName). Parameters are not on the command line; the ROS
+// layer sets them on the parameter server first, as roslaunch does.
+std::vector<std::string> buildArgv(const NodeDecl& decl, const std::string& executable, const PackageLocator& locate,
+                                   const std::string& name_suffix = "");
 
 }  // namespace anyscale_agent

@@ -19,9 +19,13 @@ XmlRpc::XmlRpcValue yamlToXmlRpc(const YAML::Node& node, const PackageLocator& l
 // Private parameters of node `node_name` (graph name without leading slash): the model's
 // `params`, then `overrides` (key -> YAML text) on top. With clear_first, the node's private
 // namespace is deleted first, like roslaunch's clear_params="true", so an override from an
-// earlier hand-off cannot outlive the start it was meant for. Everything is converted before
-// anything is written, so a bad value leaves the server untouched. Throws ModelError.
+// earlier hand-off cannot outlive the start it was meant for. With `copy_from` (the declared
+// name of a node started under an instance name), what the parameter server holds under
+// /copy_from (e.g. set by the user's launch files) is copied under /node_name first, so the
+// instance reads the private parameters the declared node would. Everything is converted
+// before anything is written, so a bad value leaves the server untouched. Throws ModelError.
 void setNodeParams(const std::string& node_name, const YAML::Node& params,
-                   const std::map<std::string, std::string>& overrides, const PackageLocator& locate, bool clear_first);
+                   const std::map<std::string, std::string>& overrides, const PackageLocator& locate, bool clear_first,
+                   const std::string& copy_from = "");
 
 }  // namespace anyscale_agent

@@ -3,7 +3,7 @@ import collections
 import threading
 import time
 import xmlrpc.client
-from typing import Callable, Optional
+from typing import Callable, Dict, Hashable, Optional
 
 import rosgraph
 import rospy
@@ -99,6 +99,24 @@ def wait_registered(node: str, pid: int, caller_id: str, timeout_s: float,
             return True
         time.sleep(period_s)
     return False
+
+
+class CallFailures:
+    """Calls the decision node repeats (lease renewals, watch lists) fail for as long as an
+    agent is out of reach: say so when a call starts failing and when it works again, not at
+    every retry."""
+
+    def __init__(self):
+        self._failing: Dict[Hashable, int] = {}     # key -> failed calls in a row
+
+    def failed(self, key: Hashable) -> bool:
+        """Counts a failure; True if the call had been working (log it)."""
+        self._failing[key] = self._failing.get(key, 0) + 1
+        return self._failing[key] == 1
+
+    def succeeded(self, key: Hashable) -> int:
+        """How many calls had failed in a row before this one worked (0: log nothing)."""
+        return self._failing.pop(key, 0)
 
 
 class Worker:

@@ -15,6 +15,7 @@ from .allocators import AllocationContext
 from .characterisation import Characterisation
 from .constraints import DynamicState, FrequencyToleranceTracker
 from .cost import ObjectiveIntegrator, perf
+from .restart_backoff import BackoffParams, RestartBackoff
 
 
 @dataclass(frozen=True)
@@ -25,6 +26,7 @@ class DecisionParams:
     act_at_tolerance: float = 0.5       # move back once this share of a tolerance is spent
     startup_grace_s: float = 5.0        # a moved node's connections are not judged this long
     cpu_smoothing_s: float = 2.0        # time constant of the background-load filter
+    restart: BackoffParams = BackoffParams()  # nodes that end unasked: at once, then backing off
 
 
 @dataclass(frozen=True)
@@ -73,6 +75,9 @@ class StartNode:
 class StopNode:
     node: str
     scale: str
+    # Make before break: stop only once the node's new instance on this scale has published
+    # its output ("" = stop at once).
+    after_output_on: str = ""
 
 
 @dataclass(frozen=True)
@@ -113,6 +118,8 @@ class DecisionEngine:
         self.trackers = [FrequencyToleranceTracker(c.freq_min, c.tolerance)
                          for c in ch.model.connections]
         self.load_filter: Dict[str, Tuple[float, float]] = {}   # scale -> (report time, load)
+        self.backoff = [RestartBackoff(params.restart) for _ in ch.node_names]
+        self.start_acked_at: Dict[int, float] = {}   # node -> when its latest start was answered
 
     # --- start-up -----------------------------------------------------------------------------
     def adopt_or_start(self, reports: Mapping[str, ScaleReport], now: float) -> TickResult:
@@ -145,24 +152,26 @@ class DecisionEngine:
         its rates mean nothing yet) only the leases are renewed. `starting`: nodes whose start
         has not been answered yet."""
         state = self.dynamic_state(reports, now)
+        up = state.up_vector(self.ch)
         if not moves_allowed:
-            return TickResult(self._renewals(state.up_vector(self.ch)), [], state, [])
+            restarts, restart_events = self._restarts(reports, up, now, starting)
+            return TickResult(restarts + self._renewals(up), restart_events, state, [])
         violating = self._update_trackers(reports, now)
         ctx = AllocationContext(now, self.params.hysteresis_s, dict(self.migrated_back_at),
                                 frozenset(violating))
         decision = self.allocator.step(self.ch, self.assign, state, ctx)
         actions, events = [], []
-        up = state.up_vector(self.ch)
         for move in decision.moves:
             name = self.ch.node_names[move.node]
             source, target = self.ch.scale_names[move.source], self.ch.scale_names[move.target]
             back = move.target == self.ch.master
-            # Stop the old instance first when it can be reached: relying on the master's
-            # same-name replacement can shut down the new roscpp instance too (ros_comm#2018).
-            # An unreachable old instance ends by itself when its lease runs out.
-            if up[move.source]:
-                actions.append(StopNode(name, source))
+            # Make before break: instances on different scales run under different names (the
+            # agents' instance names), so the new one can start while the old one still
+            # publishes, and the old one is stopped once the new one has published. An old
+            # instance that cannot be reached ends by itself when its lease runs out.
             actions.append(self._start(move.node, move.target))
+            if up[move.source]:
+                actions.append(StopNode(name, source, after_output_on=target))
             events.append(Event("migrate_back" if back else "migrate", name, source, target,
                                 move.reason))
             if back:
@@ -171,15 +180,30 @@ class DecisionEngine:
         if decision.moves:
             self.assign = decision.assign.copy()
             self.objective.change(now, perf(self.ch, self.assign))
-        for i in self._ended_where_assigned(reports, up, now, starting):
-            name, scale = self.ch.node_names[i], self.ch.scale_names[self.assign[i]]
-            actions.append(self._start(i, self.assign[i]))
-            events.append(Event("restart", name, scale, scale,
-                                f"{reports[scale].ended[name]} on {scale}"))
-            self.moved_at[i] = now
-        actions += self._renewals(up)
+        restarts, restart_events = self._restarts(reports, up, now, starting,
+                                                  moved={m.node for m in decision.moves})
+        actions += restarts + self._renewals(up)
+        events += restart_events
         return TickResult(actions, events, state,
                           [self.ch.node_names[i] for i in sorted(violating)])
+
+    def start_acknowledged(self, node: str, now: float):
+        """The agent answered a start of `node`: reports received before now may still show the
+        instance it replaces as ended."""
+        self.start_acked_at[self.ch.node_index(node)] = now
+
+    def move_failed(self, node: str, source: str, target: str, now: float) -> Optional[Event]:
+        """A make-before-break move whose new instance on `target` never published: the node
+        stays on `source`, whose instance still runs, and is not moved again for T."""
+        i = self.ch.node_index(node)
+        if self.ch.scale_names[self.assign[i]] != target:
+            return None                 # moved again meanwhile: that decision stands
+        self.assign[i] = self.ch.scale_index(source)
+        self.migrated_back_at[i] = now
+        self.moved_at[i] = now
+        self.objective.change(now, perf(self.ch, self.assign))
+        return Event("migrate_back" if self.assign[i] == self.ch.master else "migrate", node,
+                     target, source, f"the instance on {target} did not publish in time")
 
     def action_failed(self, node: str, scale: str, now: float) -> Optional[Event]:
         """A start on a remote scale did not happen: the node is on the master again (the
@@ -267,22 +291,30 @@ class DecisionEngine:
                 violating.update(i for i in ends if not self.ch.pinned[i])
         return violating
 
-    def _ended_where_assigned(self, reports, up, now, starting) -> List[int]:
-        """Nodes whose process ended on the scale they are assigned to, to be started there
-        again (roslaunch's respawn): a crash, or a clean exit such as the one the master asks
-        for when a stale registration takes the name (a dead instance's request delivered after
-        a partition heals). Not within startup_grace_s of their last start or move, which also
-        spaces out the restarts of a node that keeps failing: the report may still show the
-        instance a move replaces."""
-        failed = []
+    def _restarts(self, reports, up, now, starting,
+                  moved: AbstractSet[int] = frozenset()) -> Tuple[List[StartNode], List[Event]]:
+        """Nodes whose process ended unasked on the scale they are assigned to, started there
+        again (roslaunch's respawn) as their back-off allows: a crash, a node that exits when an
+        input is missing at its start, or a clean exit the master asked for. Only reports
+        received after the node's latest start was answered count: an earlier one may still
+        show the instance that start replaced."""
+        actions, events = [], []
         for i, name in enumerate(self.ch.node_names):
             k = int(self.assign[i])
-            report = reports.get(self.ch.scale_names[k])
-            if (report is not None and up[k] and name in report.ended and name not in starting
-                    and now - report.received_at <= self.params.status_timeout_s
-                    and now - self.moved_at.get(i, -math.inf) >= self.params.startup_grace_s):
-                failed.append(i)
-        return failed
+            scale = self.ch.scale_names[k]
+            report = reports.get(scale)
+            if (i in moved or report is None or not up[k] or name not in report.ended
+                    or name in starting
+                    or now - report.received_at > self.params.status_timeout_s
+                    or report.received_at <= self.start_acked_at.get(i, -math.inf)
+                    or not self.backoff[i].due(now)):
+                continue
+            self.backoff[i].restarted(now)
+            actions.append(self._start(i, k))
+            events.append(Event("restart", name, scale, scale,
+                                f"ended on {scale}: {report.ended[name]}"))
+            self.moved_at[i] = now
+        return actions, events
 
     def handoff_overrides(self, name: str) -> Tuple[Tuple[str, float], ...]:
         """The parameters a new instance of `name` starts with: its latest handed-over state."""

@@ -4,7 +4,7 @@ import math
 import os
 import threading
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Dict, List
 
 import diagnostic_updater
@@ -15,16 +15,15 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 
 from . import ros_convert as conv
-from .agent_client import AgentClient, Worker, wait_registered
+from .agent_actions_ros import REGISTER_TIMEOUT_S, AgentActions
+from .agent_client import AgentClient, CallFailures, Worker
 from .allocators import make_allocator
 from .characterisation import characterise
 from .cost import perf
-from .decision_engine import DecisionEngine, DecisionParams, RenewLeases, StartNode, StopNode
-from .message_arrivals import MessageArrivals
+from .decision_engine import DecisionEngine, DecisionParams, RenewLeases, StartNode
 from .model import ModelError, load_model
+from .restart_backoff import BackoffParams
 
-WATCH_RESEND_S = 10.0     # re-send watch lists now and then: an agent may have restarted
-REGISTER_TIMEOUT_S = 30.0  # a started node not registered by then is reported as failed
 
 
 class ParamError(ValueError):
@@ -41,7 +40,7 @@ class NodeParams:
     stop_timeout_s: float
     adopt_wait_s: float
     stop_sigint_timeout_s: float
-    handoff_wait_s: float
+    handover_timeout_s: float
 
 
 def read_params(get=rospy.get_param) -> NodeParams:
@@ -64,16 +63,20 @@ def read_params(get=rospy.get_param) -> NodeParams:
                             status_timeout_s=number("status_timeout_s", 1.5, 0.1),
                             act_at_tolerance=number("act_at_tolerance", 0.5),
                             startup_grace_s=number("startup_grace_s", 5.0),
-                            cpu_smoothing_s=number("cpu_smoothing_s", 2.0))
+                            cpu_smoothing_s=number("cpu_smoothing_s", 2.0),
+                            restart=BackoffParams(number("restart_delay_s", 1.0),
+                                                  number("restart_delay_max_s", 30.0),
+                                                  number("restart_reset_s", 30.0)))
     if engine.act_at_tolerance > 1.0:
         raise ParamError(f"~act_at_tolerance: expected 0..1, got {engine.act_at_tolerance:g}")
     return NodeParams(model, str(get("~allocator", "paper")), number("period_s", 1.0, 0.05),
                       engine, number("service_timeout_s", 5.0, 0.1),
                       number("stop_timeout_s", 20.0, 0.1), number("adopt_wait_s", 5.0),
-                      number("stop_sigint_timeout_s", 0.5), number("handoff_wait_s", 1.0))
+                      number("stop_sigint_timeout_s", 0.5),
+                      number("handover_timeout_s", 20.0, 0.1))
 
 
-class DecisionNode:
+class DecisionNode(AgentActions):
     def __init__(self, params: NodeParams):
         self.params = params
         self.model = load_model(params.model)
@@ -85,17 +88,21 @@ class DecisionNode:
         self.master = self.model.master.name
         self.engine = DecisionEngine(self.ch, allocator, params.engine, time.monotonic())
         self.lock = threading.Lock()          # the engine and the reports, across threads
-        self.wake = threading.Event()         # set: tick now, a link was lost
-        self.handoffs = MessageArrivals()     # state hand-off messages, per node
+        self.wake = threading.Event()         # set: tick now (a link was lost, a node ended)
         self.reports: Dict[str, object] = {}
+        self.link_up: Dict[str, bool] = {}    # remote scale -> up, as of the latest tick
         self.statuses: Dict[str, ScaleStatus] = {}
         self.violating: List[str] = []
         self.watch_sent: Dict[str, tuple] = {}
         self.starting = set()                 # (node, scale) of starts not yet answered
         self.agents = AgentClient(params.service_timeout_s, params.stop_timeout_s,
                                   params.stop_sigint_timeout_s)
-        self.moves = Worker("anyscale_moves")
+        # One worker per node: a slow start on one scale does not hold up another node's move.
+        self.node_workers = {n: Worker(f"anyscale_node_{n}") for n in self.ch.node_names}
         self.scale_workers = {s: Worker(f"anyscale_{s}") for s in self.ch.scale_names}
+        self.call_failures = CallFailures()
+        self.handing_over = set()             # nodes whose old and new instance both run
+        self.registrations = Worker("anyscale_registrations")
         self.caller_id = rospy.get_name()
         rospy.set_param("/anyscale/model", os.path.abspath(params.model))  # `anyscale top`
         self.mapping_pub = rospy.Publisher("/anyscale/mapping", MappingMsg, queue_size=1,
@@ -123,14 +130,14 @@ class DecisionNode:
             before = self.reports.get(msg.scale)
             self.reports[msg.scale] = report
             self.statuses[msg.scale] = msg
-        if before is not None and before.link_up and not report.link_up:
-            self.wake.set()         # a link lost (e.g. the uplink's carrier): decide now
+        if before is not None and (before.link_up and not report.link_up
+                                   or set(report.ended) - set(before.ended)):
+            self.wake.set()         # a link lost (e.g. the uplink's carrier), a node ended
 
     def _on_pose(self, msg, node):
         params = conv.handoff_params_from_pose(msg)
         with self.lock:
             self.engine.observe_handoff(node, params)
-        self.handoffs.arrived(node)
 
     # --- the loop -----------------------------------------------------------------------------
     def run(self):
@@ -154,8 +161,10 @@ class DecisionNode:
                                           moves_allowed=not coming_up,
                                           starting={n for n, _ in self.starting})
                 self.violating = result.violating
+                self.link_up = dict(result.state.link_up)
             self._dispatch(result, before)
             self._send_watch_lists()
+            self._purge_ghosts()
             self.updater.update()
 
     def _wait_for_tick(self, due: float) -> float:
@@ -212,8 +221,8 @@ class DecisionNode:
                         self.starting.add((action.node, action.scale))
         events = {e.node: e for e in result.events}
         for node, actions in jobs.items():
-            self.moves.submit(lambda n=node, a=actions, e=events.get(node):
-                              self._execute_move(n, a, e, now_stamp, decided))
+            self.node_workers[node].submit(lambda n=node, a=actions, e=events.get(node):
+                                           self._execute_move(n, a, e, now_stamp, decided))
         for e in result.events:
             if e.kind == "restart":
                 rospy.logwarn("anyscale decision: %s ended (%s); starting it again", e.node,
@@ -231,115 +240,6 @@ class DecisionNode:
                 rospy.loginfo("anyscale decision: initial mapping %s", after)
             self._publish_mapping()
             self._send_watch_lists(force=initial)
-
-    # --- actions (on the worker threads) ------------------------------------------------------
-    def _execute_move(self, node, actions, event, stamp, decided):
-        """One move's actions in order: a reachable old instance is stopped before the new one
-        starts (roscpp's same-name hand-over can end both, ros_comm#2018)."""
-        for action in actions:
-            if isinstance(action, StopNode):
-                self._await_fresh_state(node)
-                try:
-                    reply = self.agents.stop(action.scale, node)
-                    if not reply.success:
-                        rospy.logwarn("anyscale decision: stop %s on %s: %s", node, action.scale,
-                                      reply.message)
-                except Exception as e:  # noqa: BLE001 - the new start replaces it anyway
-                    rospy.logwarn("anyscale decision: stop %s on %s failed: %s", node,
-                                  action.scale, e)
-            elif isinstance(action, StartNode):
-                with self.lock:
-                    action = replace(
-                        action, param_overrides=self.engine.handoff_overrides(node))
-                self._start(action, event, stamp, decided)
-
-    def _await_fresh_state(self, node):
-        """A node that hands its state over and can still be reached is stopped right after its
-        next state message (at most ~handoff_wait_s from now): the new instance starts from its
-        latest state, and its subscribers' silence begins at the stop, not a period before."""
-        if self.model.node(node).state_handoff is not None:
-            self.handoffs.wait_for_next(node, self.params.handoff_wait_s)
-
-    def _start(self, action: StartNode, event, stamp, decided):
-        node, scale = action.node, action.scale
-        try:
-            reply = self.agents.start(scale, node,
-                                      conv.param_overrides_to_kv(action.param_overrides),
-                                      action.lease_s)
-            ok, message, pid = reply.success, reply.message, reply.pid
-        except Exception as e:  # noqa: BLE001 - reported as a failed start below
-            ok, message, pid = False, str(e), 0
-        with self.lock:
-            self.starting.discard((node, scale))
-        if not ok:
-            rospy.logerr("anyscale decision: start %s on %s failed: %s", node, scale, message)
-            self._publish_event("failed", node, event.from_scale if event else "", scale,
-                                f"start on {scale} failed: {message}", stamp, math.nan, False)
-            with self.lock:
-                back = self.engine.action_failed(node, scale, time.monotonic())
-            if back is not None:
-                rospy.loginfo("anyscale decision: %s", conv.describe_change(
-                    {node: scale}, {node: back.to_scale}, {node: back.reason}))
-                self._publish_mapping()
-                self._start(StartNode(node, back.to_scale, action.param_overrides, 0.0), back,
-                            rospy.Time.now(), time.monotonic())
-            return
-        if event is not None:
-            # Waiting for the registration must not hold up the next move.
-            threading.Thread(target=self._report_when_registered,
-                             args=(node, scale, pid, event, stamp, decided), daemon=True).start()
-
-    def _report_when_registered(self, node, scale, pid, event, stamp, decided):
-        registered = wait_registered("/" + node, pid, self.caller_id, REGISTER_TIMEOUT_S,
-                                     lambda: self._agent_reports_running(scale, node, pid))
-        reason = event.reason if registered else \
-            f"{event.reason}; not registered within {REGISTER_TIMEOUT_S:g} s"
-        self._publish_event(event.kind, node, event.from_scale, scale, reason, stamp,
-                            time.monotonic() - decided if registered else math.nan, registered)
-
-    def _agent_reports_running(self, scale, node, pid=None):
-        with self.lock:
-            status = self.statuses.get(scale)
-        return status is not None and any(
-            p.name == "/" + node and pid in (None, p.pid) and p.state == p.RUNNING
-            for p in status.nodes)
-
-    def _renew(self, action: RenewLeases):
-        # A node whose start is still queued gets its lease from the start itself.
-        with self.lock:
-            nodes = [n for n in action.nodes if (n, action.scale) not in self.starting]
-        if not nodes:
-            return
-        try:
-            reply = self.agents.renew(action.scale, nodes, action.lease_s)
-            if not reply.success:
-                rospy.logwarn_throttle(5.0, "anyscale decision: renew on %s: %s (not running: %s)"
-                                       % (action.scale, reply.message, reply.not_running))
-        except Exception as e:  # noqa: BLE001 - the engine sees a dead scale in its status
-            rospy.logwarn_throttle(5.0, "anyscale decision: renew on %s failed: %s"
-                                   % (action.scale, e))
-
-    def _send_watch_lists(self, force=False):
-        with self.lock:
-            lists = conv.watched_topics(self.model, self.engine.mapping())
-            seen = set(self.reports)
-        now = time.monotonic()
-        for scale, topics in lists.items():
-            last = self.watch_sent.get(scale)
-            if scale not in seen or (not force and last and last[0] == topics and
-                                     now - last[1] < WATCH_RESEND_S):
-                continue
-            self.watch_sent[scale] = (topics, now)
-            self.scale_workers[scale].submit(lambda s=scale, t=topics: self._set_watched(s, t),
-                                             key="watch")
-
-    def _set_watched(self, scale, topics):
-        try:
-            self.agents.set_watched(scale, topics)
-        except Exception as e:  # noqa: BLE001 - retried at the next resend
-            self.watch_sent.pop(scale, None)
-            rospy.logwarn_throttle(5.0, "anyscale decision: set_watched_topics on %s failed: %s"
-                                   % (scale, e))
 
     # --- outputs ------------------------------------------------------------------------------
     def _publish_mapping(self):

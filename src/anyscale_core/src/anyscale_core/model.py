@@ -18,6 +18,8 @@ _PACKAGE_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
 _EXECUTABLE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")
 _TOPIC = re.compile(r"^/?[A-Za-z~][A-Za-z0-9_/]*$")
 _HANDOFF_KINDS = ("pose",)
+# A node's instance on a remote scale registers as NAME__SCALE (the agents' instanceName).
+INSTANCE_SEPARATOR = "__"
 
 
 class ModelError(ValueError):
@@ -126,6 +128,15 @@ class SystemModel:
     @property
     def node_names(self) -> Tuple[str, ...]:
         return tuple(n.name for n in self.nodes)
+
+    def instance_name(self, node: str, scale: str) -> str:
+        """The fully qualified name `node` registers under on `scale` (the agents' rule)."""
+        suffix = "" if self.scale(scale).master else INSTANCE_SEPARATOR + scale
+        return f"/{node}{suffix}"
+
+    def output_topics(self, node: str) -> Tuple[str, ...]:
+        """Topics `node` publishes on the model's connections, each once."""
+        return tuple(dict.fromkeys(c.topic for c in self.connections if c.publisher == node))
 
 
 def load_model(path: str) -> SystemModel:
@@ -302,6 +313,10 @@ def _parse_nodes(r: _Reader, value: Any, scale_names: set) -> List[Node]:
         d = r.mapping(item, key)
         name = r.string(r.require(d, "name", key), f"{key}.name", _NODE_NAME,
                         "a ROS node name (letters, digits, _; no namespace)")
+        if INSTANCE_SEPARATOR in name:
+            r.fail(f"{key}.name", f"'{INSTANCE_SEPARATOR}' is reserved for the names instances "
+                                  f"run under on remote scales (NAME{INSTANCE_SEPARATOR}SCALE), "
+                                  f"got '{name}'")
         if name in seen:
             r.fail(f"{key}.name", f"duplicate node name '{name}'")
         seen.add(name)

@@ -46,10 +46,10 @@ def scale_report_from_msg(msg, received_at: float, model_node_names: Iterable[st
 
 
 def how_it_ended(process) -> str:
-    """'signal N' or 'exit code N' of a process that ended."""
-    if process.exit_signal:
-        return f"signal {process.exit_signal}"
-    return f"exit code {process.exit_code}"
+    """'signal N' or 'exit code N' of a process that ended, and where its log is."""
+    how = f"signal {process.exit_signal}" if process.exit_signal else \
+        f"exit code {process.exit_code}"
+    return f"{how}, log {process.log_file}" if process.log_file else how
 
 
 def watched_topics(model: SystemModel, mapping: Mapping[str, str]) -> Dict[str, List[str]]:

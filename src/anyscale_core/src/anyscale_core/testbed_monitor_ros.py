@@ -39,12 +39,13 @@ def say(line: str):
     print(f"[testbed] {line}", flush=True)
 
 
-def node_processes(names, master_uri: str) -> Dict[str, List[str]]:
+def node_processes(instances: Dict[str, str], master_uri: str) -> Dict[str, List[str]]:
     """node name -> network namespace (the /proc/PID/ns/net link) of each live process of
-    this ROS system (its ROS_MASTER_URI is ours: other systems on the machine do not count)."""
-    wanted = {f"__name:={n}".encode(): n for n in names}
+    this ROS system (its ROS_MASTER_URI is ours: other systems on the machine do not count).
+    `instances`: each name a node's instance may run under (e.g. amcl, amcl__laptop) -> node."""
+    wanted = {f"__name:={i}".encode(): n for i, n in instances.items()}
     ours = f"ROS_MASTER_URI={master_uri}".encode()
-    found: Dict[str, List[str]] = {n: [] for n in names}
+    found: Dict[str, List[str]] = {n: [] for n in set(instances.values())}
     for pid in filter(str.isdigit, os.listdir("/proc")):
         try:
             with open(f"/proc/{pid}/cmdline", "rb") as f:
@@ -173,7 +174,10 @@ class TestbedMonitor:
 
     # --- sampling -------------------------------------------------------------------------------
     def _sample(self):
-        instances = node_processes(self.node_names, rosgraph.get_master_uri())
+        instances = node_processes(
+            {self.model.instance_name(n, s).lstrip("/"): n
+             for n in self.node_names for s in self.model.scale_names},
+            rosgraph.get_master_uri())
         try:
             publishers = {t: sorted(nodes) for t, nodes in self.master.getSystemState()[0]
                           if t in self.rec.receipts}

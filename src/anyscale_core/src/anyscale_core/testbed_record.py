@@ -144,11 +144,33 @@ def pose_errors(truth: Sequence[Tuple[float, float, float]],
     return np.hypot(ex[inside] - gx, ey[inside] - gy)
 
 
-def duplicate_instances(samples: Sequence[ProcessSample], nodes: Sequence[str]):
+# A planned move runs the old and the new instance side by side until the new one has
+# published (make before break): from its decision to at most this long after the new
+# instance registered.
+HANDOVER_S = 5.0
+
+
+def handover_windows(events: Sequence[EventRecord]) -> Dict[str, List[Tuple[float, float]]]:
+    """node -> (start, end) of each planned move's overlap. A return forced by a link loss has
+    none: its old instance could not be reached, and its lease ends it."""
+    out: Dict[str, List[Tuple[float, float]]] = {}
+    for e in events:
+        if e.kind in ("migrate", "migrate_back") and not e.reason.startswith("link to"):
+            registered = e.duration_s if math.isfinite(e.duration_s) else 0.0
+            out.setdefault(e.node, []).append(
+                (e.decided_t, e.decided_t + registered + HANDOVER_S))
+    return out
+
+
+def duplicate_instances(samples: Sequence[ProcessSample], nodes: Sequence[str],
+                        events: Sequence[EventRecord] = ()):
     """Samples where a node had more than one live process while the link was up, i.e. where
-    two instances could both have been publishing: [(t, node, namespaces)]."""
+    two instances could both have been publishing, outside the overlap of a planned move
+    among `events`: [(t, node, namespaces)]."""
+    windows = handover_windows(events)
     return [(s.t, n, s.instances.get(n, [])) for s in samples if s.link_up
-            for n in nodes if len(s.instances.get(n, [])) > 1]
+            for n in nodes if len(s.instances.get(n, [])) > 1
+            and not any(a <= s.t <= b for a, b in windows.get(n, []))]
 
 
 def link_transitions(bandwidth: Sequence[Tuple[float, float]]) -> List[Tuple[float, bool]]:

@@ -1,0 +1,244 @@
+"""The decision node's actions through the agents, on worker threads: starts, make-before-break
+handovers, stops, lease renewals, watch lists, and the removal of dead instances' registrations.
+A mixin of DecisionNode (decision_ros.py), whose state it uses: the engine and its lock, the
+agents' client, the workers, the model, the parameters and the publishers."""
+import math
+import threading
+import time
+from dataclasses import replace
+
+import rosgraph
+import rospy
+
+from . import ros_convert as conv
+from .agent_client import wait_registered
+from .decision_engine import RenewLeases, StartNode, StopNode
+from .ghost_registrations import dead_registrations, purge
+from .handover_ros import PUBLISHED, TIMED_OUT, OutputWatch, wait_for_output
+
+REGISTER_TIMEOUT_S = 30.0  # a started node not registered by then is reported as failed
+GHOST_PING_TIMEOUT_S = 0.5  # a registered instance that does not answer this fast is gone
+WATCH_RESEND_S = 10.0     # re-send watch lists now and then: an agent may have restarted
+
+
+class AgentActions:
+    def _execute_move(self, node, actions, event, stamp, decided):
+        """One decision's actions for one node, in order. A planned move starts the new instance
+        first and hands the old one's stop to a thread that waits for the new one's output
+        (make before break); a duplicate found at start-up is stopped at once."""
+        handover = next((a for a in actions if isinstance(a, StopNode) and a.after_output_on),
+                        None)
+        if handover is not None:
+            with self.lock:
+                self.handing_over.add(node)
+        watch, pid = None, 0
+        for action in actions:
+            if isinstance(action, StartNode):
+                topics = self.model.output_topics(node)
+                if handover is not None and topics:
+                    watch = OutputWatch(topics, self.model.instance_name(node, action.scale))
+                with self.lock:
+                    action = replace(
+                        action, param_overrides=self.engine.handoff_overrides(node))
+                pid = self._start(action, event, stamp, decided, handover)
+                if not pid:
+                    if watch is not None:
+                        watch.close()
+                    with self.lock:
+                        self.handing_over.discard(node)
+                    return
+            elif action is handover:
+                threading.Thread(target=self._hand_over, args=(node, action, watch, pid),
+                                 daemon=True).start()
+            else:
+                self._stop(node, action.scale)
+
+    def _hand_over(self, node, stop: StopNode, watch, pid):
+        """Stops the old instance once the new one on stop.after_output_on has published (for a
+        node without outputs in the model: registered), while the node is still meant to run
+        there; if the new one never does, the node stays where it was."""
+        try:
+            self._overlap(node, stop, watch, pid)
+        finally:
+            with self.lock:
+                self.handing_over.discard(node)
+
+    def _overlap(self, node, stop: StopNode, watch, pid):
+        source, target = stop.scale, stop.after_output_on
+        began = time.monotonic()
+
+        def assigned():
+            with self.lock:
+                return self.engine.mapping()[node]
+
+        def renew_old_lease():
+            if source != self.master:
+                self.scale_workers[source].submit(
+                    lambda: self._renew(RenewLeases(source, (node,), self.params.engine.lease_s)),
+                    key=("handover", node))
+
+        if watch is not None:
+            outcome = wait_for_output(watch, self.params.handover_timeout_s,
+                                      lambda: assigned() == target, renew_old_lease)
+            watch.close()
+        else:
+            registered = wait_registered(self.model.instance_name(node, target), pid,
+                                         self.caller_id, self.params.handover_timeout_s)
+            outcome = PUBLISHED if registered else TIMED_OUT
+        if outcome == PUBLISHED:
+            rospy.loginfo("anyscale decision: %s on %s published %.2f s after its start; "
+                          "stopping the instance on %s", node, target,
+                          time.monotonic() - began, source)
+        if outcome != TIMED_OUT:
+            # Moved on meanwhile (a link loss brought it back): the old instance is where the
+            # node runs now, unless it went to a third scale.
+            if assigned() != source:
+                self._stop(node, source)
+            return
+        rospy.logwarn("anyscale decision: %s on %s did not publish within %.1f s; it stays on %s",
+                      node, target, self.params.handover_timeout_s, source)
+        self._stop(node, target)
+        with self.lock:
+            back = self.engine.move_failed(node, source, target, time.monotonic())
+        if back is not None:
+            self._publish_event("failed", node, source, target, back.reason, rospy.Time.now(),
+                                math.nan, False)
+            self._publish_mapping()
+
+    def _stop(self, node, scale):
+        if not self.link_up.get(scale, True):
+            return          # out of reach: its lease ends it there
+        try:
+            reply = self.agents.stop(scale, node)
+            if not reply.success:
+                rospy.logwarn("anyscale decision: stop %s on %s: %s", node, scale, reply.message)
+        except Exception as e:  # noqa: BLE001 - its lease ends it anyway
+            rospy.logwarn("anyscale decision: stop %s on %s failed: %s", node, scale, e)
+
+    def _start(self, action: StartNode, event, stamp, decided, handover=None) -> int:
+        """Starts the node; its pid, or 0 if the start failed (then handled here)."""
+        node, scale = action.node, action.scale
+        try:
+            reply = self.agents.start(scale, node,
+                                      conv.param_overrides_to_kv(action.param_overrides),
+                                      action.lease_s)
+            ok, message, pid = reply.success, reply.message, reply.pid
+        except Exception as e:  # noqa: BLE001 - reported as a failed start below
+            ok, message, pid = False, str(e), 0
+        with self.lock:
+            self.starting.discard((node, scale))
+            if ok:
+                self.engine.start_acknowledged(node, time.monotonic())
+        if not ok:
+            self._start_failed(action, event, message, handover)
+            return 0
+        if event is not None:
+            # Waiting for the registration must not hold up the next move.
+            threading.Thread(target=self._report_when_registered,
+                             args=(node, scale, pid, event, stamp, decided), daemon=True).start()
+        return pid
+
+    def _start_failed(self, action: StartNode, event, message, handover):
+        node, scale = action.node, action.scale
+        rospy.logerr("anyscale decision: start %s on %s failed: %s", node, scale, message)
+        self._publish_event("failed", node, event.from_scale if event else "", scale,
+                            f"start on {scale} failed: {message}", rospy.Time.now(), math.nan,
+                            False)
+        with self.lock:
+            if handover is not None:    # the old instance still runs: the node stays there
+                back = self.engine.move_failed(node, handover.scale, scale, time.monotonic())
+            else:
+                back = self.engine.action_failed(node, scale, time.monotonic())
+        if back is None:
+            return
+        rospy.loginfo("anyscale decision: %s", conv.describe_change(
+            {node: scale}, {node: back.to_scale}, {node: back.reason}))
+        self._publish_mapping()
+        if handover is None:
+            self._start(StartNode(node, back.to_scale, action.param_overrides, 0.0), back,
+                        rospy.Time.now(), time.monotonic())
+
+    def _report_when_registered(self, node, scale, pid, event, stamp, decided):
+        registered = wait_registered(self.model.instance_name(node, scale), pid, self.caller_id,
+                                     REGISTER_TIMEOUT_S,
+                                     lambda: self._agent_reports_running(scale, node, pid))
+        reason = event.reason if registered else \
+            f"{event.reason}; not registered within {REGISTER_TIMEOUT_S:g} s"
+        self._publish_event(event.kind, node, event.from_scale, scale, reason, stamp,
+                            time.monotonic() - decided if registered else math.nan, registered)
+
+    def _agent_reports_running(self, scale, node, pid=None):
+        with self.lock:
+            status = self.statuses.get(scale)
+        return status is not None and any(
+            p.name == "/" + node and pid in (None, p.pid) and p.state == p.RUNNING
+            for p in status.nodes)
+
+    def _renew(self, action: RenewLeases):
+        # A node whose start is still queued gets its lease from the start itself.
+        with self.lock:
+            nodes = [n for n in action.nodes if (n, action.scale) not in self.starting]
+        if not nodes:
+            return
+        try:
+            reply = self.agents.renew(action.scale, nodes, action.lease_s)
+            failure = None if reply.success else f"{reply.message} (not running: " \
+                                                 f"{', '.join(reply.not_running)})"
+        except Exception as e:  # noqa: BLE001 - the engine sees a dead scale in its status
+            failure = f"failed: {e}"
+        self._note_call(("renew_leases", action.scale), failure)
+
+    def _send_watch_lists(self, force=False):
+        with self.lock:
+            lists = conv.watched_topics(self.model, self.engine.mapping())
+            seen = set(self.reports)
+        now = time.monotonic()
+        for scale, topics in lists.items():
+            last = self.watch_sent.get(scale)
+            if scale not in seen or (not force and last and last[0] == topics and
+                                     now - last[1] < WATCH_RESEND_S):
+                continue
+            self.watch_sent[scale] = (topics, now)
+            self.scale_workers[scale].submit(lambda s=scale, t=topics: self._set_watched(s, t),
+                                             key="watch")
+
+    def _set_watched(self, scale, topics):
+        try:
+            self.agents.set_watched(scale, topics)
+            failure = None
+        except Exception as e:  # noqa: BLE001 - retried at the next resend
+            self.watch_sent.pop(scale, None)
+            failure = f"failed: {e}"
+        self._note_call(("set_watched_topics", scale), failure)
+
+    def _note_call(self, key, failure):
+        """Logs a repeated call's failure when it starts, and when the call works again."""
+        service, scale = key
+        if failure is not None:
+            if self.call_failures.failed(key):
+                rospy.logwarn("anyscale decision: %s on %s: %s; retrying quietly until it works",
+                              service, scale, failure)
+        elif self.call_failures.succeeded(key):
+            rospy.loginfo("anyscale decision: %s on %s works again", service, scale)
+
+    def _purge_ghosts(self):
+        """Removes the master's registrations of this system's node instances that are gone
+        (see ghost_registrations), except where a node runs or is being handed over."""
+        with self.lock:
+            mapping = self.engine.mapping()
+            busy = set(self.handing_over)
+        names = [self.model.instance_name(n, s) for n, where in mapping.items() if n not in busy
+                 for s in self.ch.scale_names if s != where]
+        self.registrations.submit(lambda: self._purge(names), key="purge")
+
+    def _purge(self, names):
+        master = rosgraph.Master(self.caller_id)
+        try:
+            dead = dead_registrations(master, names, self.caller_id, GHOST_PING_TIMEOUT_S)
+            purge(master, dead)
+        except (rosgraph.MasterError, OSError) as e:
+            rospy.logdebug("anyscale decision: registration check failed: %s", e)
+            return
+        if dead:
+            rospy.loginfo("anyscale decision: removed the master's registrations of %s (gone: "
+                          "no answer on their API)", ", ".join(dead))

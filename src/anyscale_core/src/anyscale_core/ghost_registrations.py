@@ -1,0 +1,35 @@
+"""Registrations the master keeps for node instances that are gone.
+
+A process killed without unregistering (its lease ran out behind a partition, its agent died)
+stays registered with the master under its instance name, e.g. /amcl__laptop. Its topics then
+list a publisher nobody can reach. That is harmless for the data, but `rostopic info` shows a
+ghost, and every subscriber keeps trying to connect to it. A request the dead process sent
+before the link went, and that TCP delivers once the link is back, registers it again. The
+decision node removes such registrations the way `rosnode cleanup` does, but only for instance
+names it manages, and only once the instance no longer answers on its XML-RPC API.
+"""
+from typing import Iterable, List
+
+import rosgraph
+import rosnode
+
+from .agent_client import registered_pid
+
+
+def registered_nodes(master: rosgraph.Master) -> set:
+    """Every node the master lists as a publisher, subscriber or service provider."""
+    return {node for kind in master.getSystemState() for _, nodes in kind for node in nodes}
+
+
+def dead_registrations(master: rosgraph.Master, candidates: Iterable[str], caller_id: str,
+                       timeout_s: float) -> List[str]:
+    """The candidate names the master lists whose process does not answer within timeout_s."""
+    listed = registered_nodes(master)
+    return [n for n in candidates
+            if n in listed and registered_pid(n, caller_id, timeout_s) is None]
+
+
+def purge(master: rosgraph.Master, names: List[str]):
+    """Unregisters every topic and service of `names` (rosnode cleanup's own routine)."""
+    if names:
+        rosnode.cleanup_master_blacklist(master, names)

@@ -78,16 +78,25 @@ bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::S
   {
     const std::string exe = resolveExecutable(decl->package, decl->type, catkinPrefixes(std::getenv("CMAKE_PREFIX_PATH")), locate);
     argv = buildArgv(*decl, exe, locate, instanceSuffix(scale_, is_master_));
+    // A node being stopped here cannot be taken over (a rospy node that got SIGINT is shutting
+    // down): a link loss right after a planned move brings the node back to the scale whose
+    // old instance is being stopped. The migration stop ends it within its SIGINT grace, so
+    // the start waits for that and then goes ahead.
+    if (const auto stopping = supervisor_.info(name); stopping && stopping->state == ProcState::Stopping)
+    {
+      const auto& o = supervisor_.options();
+      if (!supervisor_.waitGone(name, o.sigint_timeout_s + o.sigterm_timeout_s + 5.0))
+      {
+        res.message = "refused: " + name + " is being stopped here and did not end (pid " +
+                      std::to_string(stopping->pid) + ")";
+        return true;
+      }
+      ROS_INFO("start of %s waited for its previous instance (pid %d) to end", name.c_str(), stopping->pid);
+    }
     if (const auto running = supervisor_.info(name); running && running->pid != 0 && !isStandby(running))
     {
       // Starting is idempotent: the decision node asks for a node where it must run, and a
-      // planned move that a link loss interrupts asks for the old instance it had not stopped
-      // yet. A node being stopped cannot be taken over.
-      if (running->state == ProcState::Stopping)
-      {
-        res.message = "refused: " + name + " is being stopped here (pid " + std::to_string(running->pid) + ")";
-        return true;
-      }
+      // planned move that a link loss interrupts asks for the old instance it had not stopped.
       std::lock_guard<std::mutex> lock(leases_mutex_);
       leases_.grant(name, steadyNow(), req.lease_s);
       res.success = true;

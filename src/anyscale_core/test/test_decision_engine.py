@@ -18,6 +18,10 @@ HEALTHY = {"/scan": 10.0, "/joint_states": 40.0, "/wheel_ticks": 40.0,
            "/odometry/filtered": 5.0, "/ar_markers": 30.0}
 
 
+# The paper's decisions: a move out judged on the bandwidth of the moment (no hold).
+PAPER = DecisionParams(bandwidth_hold_s=0.0)
+
+
 def reports(now, bandwidth=20.0, laptop=True, rates=None, laptop_running=(), laptop_load=0.0):
     rates = {**HEALTHY, **(rates or {})}
     out = {"robot": ScaleReport("robot", now, 40.0, 2.0, {}, rates)}
@@ -29,7 +33,7 @@ def reports(now, bandwidth=20.0, laptop=True, rates=None, laptop_running=(), lap
 
 @pytest.fixture
 def engine(testbed_ch):
-    e = DecisionEngine(testbed_ch, make_allocator("paper"), DecisionParams(startup_grace_s=0.0))
+    e = DecisionEngine(testbed_ch, make_allocator("paper"), DecisionParams(bandwidth_hold_s=0.0, startup_grace_s=0.0))
     e.adopt_or_start(reports(0.0), 0.0)
     return e
 
@@ -39,7 +43,7 @@ def remote(engine):
 
 
 def test_initial_configuration_starts_everything_on_the_robot(testbed_ch):
-    e = DecisionEngine(testbed_ch, make_allocator("paper"))
+    e = DecisionEngine(testbed_ch, make_allocator("paper"), PAPER)
     result = e.adopt_or_start(reports(0.0), 0.0)
     assert sorted(a.node for a in result.actions) == sorted(testbed_ch.node_names)
     assert all(isinstance(a, StartNode) and a.scale == "robot" and a.lease_s == 0
@@ -115,7 +119,7 @@ def test_slow_connection_moves_its_node_back_before_the_tolerance_runs_out(engin
 
 
 def test_moved_node_gets_a_start_up_grace(testbed_ch):
-    e = DecisionEngine(testbed_ch, make_allocator("paper"), DecisionParams(startup_grace_s=5.0))
+    e = DecisionEngine(testbed_ch, make_allocator("paper"), DecisionParams(bandwidth_hold_s=0.0, startup_grace_s=5.0))
     e.adopt_or_start(reports(0.0), 0.0)
     e.tick(reports(6.0), 6.0)                                          # AMCL moves out
     silent = {"/amcl_pose": 0.0}
@@ -162,7 +166,7 @@ def test_a_link_loss_return_starts_without_stopping(engine):
 
 
 def test_restarted_engine_adopts_what_runs(testbed_ch):
-    e = DecisionEngine(testbed_ch, make_allocator("paper"))
+    e = DecisionEngine(testbed_ch, make_allocator("paper"), PAPER)
     running = reports(0.0, laptop_running=("amcl",))
     running["robot"] = running["robot"].__class__(
         "robot", 0.0, 40.0, 2.0, {n: 5.0 for n in testbed_ch.node_names if n != "amcl"}, HEALTHY)
@@ -182,7 +186,7 @@ def test_critical_nodes_never_move(engine, testbed_ch):
 
 
 def test_no_moves_while_the_initial_configuration_comes_up(testbed_ch):
-    e = DecisionEngine(testbed_ch, make_allocator("paper"))
+    e = DecisionEngine(testbed_ch, make_allocator("paper"), PAPER)
     e.adopt_or_start(reports(0.0), 0.0)
     for t in (1.0, 2.0, 3.0):
         assert e.tick(reports(t), t, moves_allowed=False).actions == []
@@ -192,13 +196,13 @@ def test_no_moves_while_the_initial_configuration_comes_up(testbed_ch):
 
 
 def test_background_load_excludes_the_models_nodes(testbed_ch):
-    e = DecisionEngine(testbed_ch, make_allocator("paper"), DecisionParams(cpu_smoothing_s=0.0))
+    e = DecisionEngine(testbed_ch, make_allocator("paper"), DecisionParams(bandwidth_hold_s=0.0, cpu_smoothing_s=0.0))
     state = e.dynamic_state(reports(1.0, laptop_load=50.0, laptop_running=("amcl",)), 1.0)
     assert state.scale_load["laptop"] == pytest.approx(50.0 - 10.0 / 4.0)
 
 
 def test_warm_standbys_importing_are_no_background_load(testbed_ch):
-    e = DecisionEngine(testbed_ch, make_allocator("paper"), DecisionParams(cpu_smoothing_s=0.0))
+    e = DecisionEngine(testbed_ch, make_allocator("paper"), DecisionParams(bandwidth_hold_s=0.0, cpu_smoothing_s=0.0))
     busy = reports(1.0, laptop_load=80.0)
     busy["laptop"] = dataclasses.replace(busy["laptop"], standby_cpu=300.0)   # 3 of 4 cores
     assert e.dynamic_state(busy, 1.0).scale_load["laptop"] == pytest.approx(80.0 - 75.0)
@@ -259,7 +263,7 @@ def crashed_ekf_restarts(e, t, starting=frozenset(), moves_allowed=True):
 def test_restarts_come_at_once_then_back_off(testbed_ch):
     backoff = BackoffParams(first_delay_s=1.0, max_delay_s=4.0, reset_after_s=30.0)
     e = DecisionEngine(testbed_ch, make_allocator("paper"),
-                       DecisionParams(startup_grace_s=5.0, restart=backoff))
+                       DecisionParams(bandwidth_hold_s=0.0, startup_grace_s=5.0, restart=backoff))
     e.adopt_or_start(reports(0.0, laptop=False), 0.0)
     assert crashed_ekf_restarts(e, 0.5, starting={"ekf"}) == []    # a start not answered yet
     assert crashed_ekf_restarts(e, 1.0) == ["ekf"]          # at once, within the start's grace
@@ -283,7 +287,7 @@ def test_a_node_that_ran_long_enough_restarts_at_once_again():
 
 
 def test_restarts_during_the_initial_configuration(testbed_ch):
-    e = DecisionEngine(testbed_ch, make_allocator("paper"))
+    e = DecisionEngine(testbed_ch, make_allocator("paper"), PAPER)
     e.adopt_or_start(reports(0.0, laptop=False), 0.0)
     # A stock node that exits when its input does not exist yet (topic_tools transform).
     assert crashed_ekf_restarts(e, 1.0, moves_allowed=False) == ["ekf"]
@@ -293,3 +297,60 @@ def test_no_restart_on_a_scale_that_cannot_be_reached(engine):
     r = reports(9.0)
     r["laptop"] = dataclasses.replace(r["laptop"], received_at=0.0, ended={"amcl": "signal 9"})
     assert [ev for ev in engine.tick(r, 9.0).events if ev.kind == "restart"] == []
+
+
+def test_a_move_out_waits_until_the_link_has_held_the_bandwidth_with_a_margin(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"),
+                       DecisionParams(bandwidth_hold_s=5.0, bandwidth_margin=0.3))
+    e.adopt_or_start(reports(0.0), 0.0)
+    # AR moves 6.05 Mbit/s when remote: with a 30 % margin it needs 7.9 Mbit/s held for 5 s.
+    for t in range(0, 5):
+        assert e.tick(reports(float(t), bandwidth=20.0), float(t)).events == []
+    assert remote(e) == []                                       # not watched 5 s yet
+    e.tick(reports(5.0, bandwidth=20.0), 5.0)
+    assert remote(e) == ["amcl"]                                  # 0.22 Mbit/s: held
+    e.tick(reports(6.0, bandwidth=7.5), 6.0)                     # a dip below 7.9
+    for t in range(7, 11):
+        e.tick(reports(float(t), bandwidth=20.0), float(t))
+    assert remote(e) == ["amcl"]                                  # the dip is within 5 s
+    e.tick(reports(11.9, bandwidth=20.0), 11.9)
+    assert remote(e) == ["amcl"]                                  # 7.5 was in force until 7 s
+    e.tick(reports(12.0, bandwidth=20.0), 12.0)
+    assert remote(e) == ["amcl", "ar_recognition"]
+
+
+def test_a_link_that_came_back_has_shown_nothing_yet(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"),
+                       DecisionParams(bandwidth_hold_s=3.0, hysteresis_s=0.0))
+    e.adopt_or_start(reports(0.0), 0.0)
+    for t in range(1, 7):
+        e.tick(reports(float(t)), float(t))
+    assert remote(e) == ["amcl", "ar_recognition"]
+    e.tick({"robot": reports(7.0)["robot"]}, 7.0)                 # the laptop goes silent
+    assert remote(e) == []
+    for t in (8.0, 9.0, 10.0, 10.9):                              # back at 8 s
+        assert e.tick(reports(t), t).events == []                 # not held 3 s yet
+    assert [ev.node for ev in e.tick(reports(11.0), 11.0).events] == ["amcl"]
+
+
+def test_a_node_out_stays_while_the_link_carries_it_without_the_margin(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"),
+                       DecisionParams(bandwidth_hold_s=2.0, bandwidth_margin=0.3))
+    e.adopt_or_start(reports(0.0), 0.0)
+    for t in range(1, 6):
+        e.tick(reports(float(t)), float(t))
+    assert remote(e) == ["amcl", "ar_recognition"]
+    # 6.5 Mbit/s carries AR's 6.05 + AMCL's 0.22, below the margin a move out needs.
+    for t in range(6, 12):
+        assert e.tick(reports(float(t), bandwidth=6.5), float(t)).events == []
+    assert remote(e) == ["amcl", "ar_recognition"]
+
+
+@pytest.mark.parametrize("allocator", ["paper", "paper_local", "optimal"])
+def test_every_allocator_respects_the_hold(testbed_ch, allocator):
+    e = DecisionEngine(testbed_ch, make_allocator(allocator),
+                       DecisionParams(bandwidth_hold_s=2.0, bandwidth_margin=0.3))
+    e.adopt_or_start(reports(0.0), 0.0)
+    for t in range(1, 6):
+        e.tick(reports(float(t), bandwidth=7.0), float(t))   # carries AR, not with 30 % more
+    assert remote(e) == ["amcl"]

@@ -36,7 +36,8 @@ class AgentActions:
             if isinstance(action, StartNode):
                 topics = self.model.output_topics(node)
                 if handover is not None and topics:
-                    watch = OutputWatch(topics, self.model.instance_name(node, action.scale))
+                    watch = OutputWatch(topics, self.model.instance_name(node, action.scale),
+                                        self.params.handover_messages)
                 with self.lock:
                     action = replace(
                         action, param_overrides=self.engine.handoff_overrides(node))

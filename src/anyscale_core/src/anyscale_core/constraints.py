@@ -1,6 +1,7 @@
 """System constraints (paper III-B-4): scale CPU capacity, network bandwidth, remote links, and
 the per-connection frequency/tolerance condition tracked over time."""
-from dataclasses import dataclass, field
+from collections import deque
+from dataclasses import dataclass, field, replace
 import math
 from typing import Any, Dict, List, Mapping, Optional
 
@@ -19,6 +20,9 @@ class DynamicState:
     bandwidth_mbps: float                      # available on the network now
     scale_load: Mapping[str, float] = field(default_factory=dict)  # % of CPU not from model nodes
     link_up: Mapping[str, bool] = field(default_factory=dict)      # per remote scale; absent = up
+    # What a mapping may make cross scales beyond what already crosses: the bandwidth the link
+    # has held for a while, less a margin (BandwidthHold). inf: no such limit (the paper's).
+    admit_bandwidth_mbps: float = math.inf
 
     @staticmethod
     def nominal(model: SystemModel) -> "DynamicState":
@@ -83,6 +87,42 @@ def required_bandwidth(ch: Characterisation, assign: np.ndarray) -> float:
     """Mbit/s of every connection whose two ends run on different scales."""
     crosses = assign[ch.conn_pub] != assign[ch.conn_sub]
     return float(ch.conn_bandwidth[crosses].sum())
+
+
+def admission_state(ch: Characterisation, assign: np.ndarray,
+                    state: DynamicState) -> DynamicState:
+    """The state a decision from `assign` is judged in: a mapping may need as much bandwidth as
+    the link has now, but more than `assign` already needs only up to what the link has held
+    (admit_bandwidth_mbps). So a node that is out stays while the link carries it, and a node
+    moves out only onto a link that has shown it can carry the stream, with a margin."""
+    limit = min(state.bandwidth_mbps,
+                max(state.admit_bandwidth_mbps, required_bandwidth(ch, assign)))
+    return replace(state, bandwidth_mbps=limit)
+
+
+class BandwidthHold:
+    """The least bandwidth the link showed over the last hold_s, less a margin: what a move
+    out may count on. 0 until the link has been watched that long, and after a loss: a link
+    that just came back has shown nothing yet."""
+
+    def __init__(self, hold_s: float, margin: float):
+        self.hold_s = hold_s
+        self.margin = margin
+        self._samples: deque = deque()      # (t, Mbit/s), 0 = link down
+        self._since: Optional[float] = None  # when watching began
+
+    def add(self, t: float, mbps: float):
+        if self._since is None:
+            self._since = t
+        self._samples.append((t, mbps))
+        while len(self._samples) > 1 and self._samples[1][0] <= t - self.hold_s:
+            self._samples.popleft()
+
+    def admissible(self, t: float) -> float:
+        if self._since is None or t - self._since < self.hold_s:
+            return 0.0
+        held = min(m for _, m in self._samples)
+        return held / (1.0 + self.margin)
 
 
 def scale_cpu(ch: Characterisation, assign: np.ndarray, load: np.ndarray) -> np.ndarray:

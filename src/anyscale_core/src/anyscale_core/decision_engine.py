@@ -5,7 +5,7 @@ the per-connection frequency/tolerance trackers, runs the allocator once (one it
 Algorithm 1 per period, as the paper's loop sleeps between iterations) and turns its moves into
 actions for the agents. The rospy wrapper only converts messages and calls services.
 """
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 from typing import AbstractSet, Dict, List, Mapping, Optional, Tuple
 
@@ -13,7 +13,7 @@ import numpy as np
 
 from .allocators import AllocationContext
 from .characterisation import Characterisation
-from .constraints import DynamicState, FrequencyToleranceTracker
+from .constraints import BandwidthHold, DynamicState, FrequencyToleranceTracker
 from .cost import ObjectiveIntegrator, perf
 from .restart_backoff import BackoffParams, RestartBackoff
 
@@ -27,6 +27,8 @@ class DecisionParams:
     startup_grace_s: float = 5.0        # a moved node's connections are not judged this long
     cpu_smoothing_s: float = 2.0        # time constant of the background-load filter
     restart: BackoffParams = BackoffParams()  # nodes that end unasked: at once, then backing off
+    bandwidth_hold_s: float = 5.0       # a move out needs the link to have shown its bandwidth
+    bandwidth_margin: float = 0.3       # this long, with this share above what it will carry
 
 
 @dataclass(frozen=True)
@@ -119,6 +121,7 @@ class DecisionEngine:
                          for c in ch.model.connections]
         self.load_filter: Dict[str, Tuple[float, float]] = {}   # scale -> (report time, load)
         self.backoff = [RestartBackoff(params.restart) for _ in ch.node_names]
+        self.bandwidth_hold = BandwidthHold(params.bandwidth_hold_s, params.bandwidth_margin)
         self.start_acked_at: Dict[int, float] = {}   # node -> when its latest start was answered
 
     # --- start-up -----------------------------------------------------------------------------
@@ -149,10 +152,13 @@ class DecisionEngine:
     def tick(self, reports: Mapping[str, ScaleReport], now: float,
              moves_allowed: bool = True, starting: AbstractSet[str] = frozenset()) -> TickResult:
         """One period. With moves_allowed False (the initial configuration is still coming up:
-        its rates mean nothing yet) only the leases are renewed. `starting`: nodes whose start
-        has not been answered yet."""
+        its rates mean nothing yet) only the leases are renewed and nodes that ended started
+        again. `starting`: nodes whose start has not been answered yet."""
         state = self.dynamic_state(reports, now)
         up = state.up_vector(self.ch)
+        remote_up = any(up[k] for k in range(self.ch.num_scales) if k != self.ch.master)
+        self.bandwidth_hold.add(now, state.bandwidth_mbps if remote_up else 0.0)
+        state = replace(state, admit_bandwidth_mbps=self.bandwidth_hold.admissible(now))
         if not moves_allowed:
             restarts, restart_events = self._restarts(reports, up, now, starting)
             return TickResult(restarts + self._renewals(up), restart_events, state, [])

@@ -41,6 +41,7 @@ class NodeParams:
     adopt_wait_s: float
     stop_sigint_timeout_s: float
     handover_timeout_s: float
+    handover_messages: int
 
 
 def read_params(get=rospy.get_param) -> NodeParams:
@@ -66,14 +67,17 @@ def read_params(get=rospy.get_param) -> NodeParams:
                             cpu_smoothing_s=number("cpu_smoothing_s", 2.0),
                             restart=BackoffParams(number("restart_delay_s", 1.0),
                                                   number("restart_delay_max_s", 30.0),
-                                                  number("restart_reset_s", 30.0)))
+                                                  number("restart_reset_s", 30.0)),
+                            bandwidth_hold_s=number("bandwidth_hold_s", 5.0),
+                            bandwidth_margin=number("bandwidth_margin", 0.3))
     if engine.act_at_tolerance > 1.0:
         raise ParamError(f"~act_at_tolerance: expected 0..1, got {engine.act_at_tolerance:g}")
     return NodeParams(model, str(get("~allocator", "paper")), number("period_s", 1.0, 0.05),
                       engine, number("service_timeout_s", 5.0, 0.1),
                       number("stop_timeout_s", 20.0, 0.1), number("adopt_wait_s", 5.0),
                       number("stop_sigint_timeout_s", 0.5),
-                      number("handover_timeout_s", 20.0, 0.1))
+                      number("handover_timeout_s", 20.0, 0.1),
+                      int(number("handover_messages", 3, 1)))
 
 
 class DecisionNode(AgentActions):

@@ -19,12 +19,16 @@ PUBLISHED, ABANDONED, TIMED_OUT = "published", "abandoned", "timed out"
 
 
 class OutputWatch:
-    """Subscribes to `topics` (any type, not deserialised) and notes the first message that
-    `instance` (a fully qualified node name) publishes on any of them. Create it before the
-    instance starts, so the subscription is in place when its first message goes out."""
+    """Subscribes to `topics` (any type, not deserialised) and notes when `instance` (a fully
+    qualified node name) has published `count` messages on them: its first one can come
+    before it runs at its rate (a filter's first update, a map still being processed).
+    Create it before the instance starts, so the subscription is in place when its first
+    message goes out."""
 
-    def __init__(self, topics: Sequence[str], instance: str):
+    def __init__(self, topics: Sequence[str], instance: str, count: int = 1):
         self.instance = instance
+        self.count = count
+        self.received = 0
         self.published = threading.Event()
         self._subscribers = [rospy.Subscriber(t, rospy.AnyMsg, self._on_message, queue_size=1)
                              for t in topics]
@@ -32,7 +36,9 @@ class OutputWatch:
     def _on_message(self, msg):
         header = getattr(msg, "_connection_header", None) or {}
         if header.get("callerid") == self.instance:
-            self.published.set()
+            self.received += 1
+            if self.received >= self.count:
+                self.published.set()
 
     def close(self):
         for sub in self._subscribers:

@@ -1,4 +1,5 @@
 """AMCL core: odometry motion model, likelihood-field sensor model, KLD resampling, recovery."""
+import functools
 import math
 
 import numpy as np
@@ -7,18 +8,28 @@ from scipy import ndimage
 from .geometry import wrap_angle
 
 
-class LikelihoodField:
-    """Distance (m) from every cell to the nearest occupied cell, capped (amcl's likelihood field)."""
+def obstacle_distances(occ_map, max_dist):
+    """Distance (m) from every cell to the nearest occupied cell, capped at max_dist."""
+    dist = ndimage.distance_transform_edt(~occ_map.occupied) * occ_map.resolution
+    return np.minimum(dist, max_dist)
 
-    def __init__(self, occ_map, max_dist=2.0):
+
+class LikelihoodField:
+    """Distance (m) from every cell to the nearest occupied cell, capped (amcl's likelihood field).
+    `dist`: those distances if already known (likelihood_cache), else computed here."""
+
+    def __init__(self, occ_map, max_dist=2.0, dist=None):
         self.map = occ_map
         self.max_dist = max_dist
-        dist = ndimage.distance_transform_edt(~occ_map.occupied) * occ_map.resolution
-        self.dist = np.minimum(dist, max_dist)
+        self.dist = obstacle_distances(occ_map, max_dist) if dist is None else dist
         # A border of max_dist cells: points off the map clip onto it, so lookups need no mask.
         self.padded = np.pad(self.dist, 1, constant_values=max_dist)
-        free = np.argwhere(occ_map.free)
-        self.free_xy = np.column_stack(occ_map.cell_center(free[:, 1], free[:, 0]))
+
+    @functools.cached_property
+    def free_xy(self):
+        """Centres of the free cells: only random particles (recovery) need them."""
+        free = np.argwhere(self.map.free)
+        return np.column_stack(self.map.cell_center(free[:, 1], free[:, 0]))
 
     def distance_at(self, x, y):
         """Obstacle distance at world points; points off the map count as max_dist away."""

@@ -10,7 +10,8 @@ of connected nodes together keeps the traffic between them off the network.
 import numpy as np
 
 from ..characterisation import Characterisation
-from ..constraints import CPU_CAPACITY_PERCENT, DynamicState, feasible_many, is_feasible
+from ..constraints import (CPU_CAPACITY_PERCENT, DynamicState, admission_state, feasible_many,
+                           is_feasible)
 from .base import AllocationContext, Decision, candidate_scales, moves_between
 from .paper import PaperAllocator
 
@@ -31,6 +32,7 @@ class PaperLocalAllocator:
     def decide(self, ch: Characterisation, assign: np.ndarray, state: DynamicState,
                ctx: AllocationContext) -> Decision:
         current = PaperAllocator().decide(ch, assign, state, ctx).assign
+        state = admission_state(ch, assign, state)
         if is_feasible(ch, current, state):
             mask = candidate_scales(ch, state, ctx)
             units = movable_units(ch)

@@ -9,7 +9,7 @@ from scipy import sparse
 from scipy.optimize import Bounds, LinearConstraint, milp
 
 from ..characterisation import Characterisation, enumerate_mappings
-from ..constraints import CPU_CAPACITY_PERCENT, DynamicState, feasible_many
+from ..constraints import CPU_CAPACITY_PERCENT, DynamicState, admission_state, feasible_many
 from ..cost import perf_of_many
 from .base import AllocationContext, Decision, candidate_scales, moves_between
 
@@ -27,6 +27,7 @@ class OptimalAllocator:
 
     def decide(self, ch: Characterisation, assign: np.ndarray, state: DynamicState,
                ctx: AllocationContext) -> Decision:
+        state = admission_state(ch, assign, state)
         mask = candidate_scales(ch, state, ctx)
         space = np.prod(mask.sum(axis=1).astype(float))
         if space <= self.enumeration_limit:

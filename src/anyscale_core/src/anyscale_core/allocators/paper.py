@@ -13,8 +13,8 @@ from typing import List, Tuple
 import numpy as np
 
 from ..characterisation import Characterisation
-from ..constraints import (CPU_CAPACITY_PERCENT, DynamicState, required_bandwidth, scale_cpu,
-                           scale_memory)
+from ..constraints import (CPU_CAPACITY_PERCENT, DynamicState, admission_state,
+                           required_bandwidth, scale_cpu, scale_memory)
 from .base import AllocationContext, Decision, Move, candidate_scales
 
 
@@ -111,13 +111,14 @@ class PaperAllocator:
         load = state.load_vector(ch)
         cpu = scale_cpu(ch, assign, load)
         mem = scale_memory(ch, assign)
+        bandwidth = admission_state(ch, assign, state).bandwidth_mbps
         for i in node_list:
             for k in scale_list:
                 if not mask[i, k]:
                     continue
                 trial = assign.copy()
                 trial[i] = k
-                if required_bandwidth(ch, trial) > state.bandwidth_mbps + 1e-9:
+                if required_bandwidth(ch, trial) > bandwidth + 1e-9:
                     continue
                 if cpu[k] + ch.cpu[i, k] > CPU_CAPACITY_PERCENT + 1e-9 \
                         or mem[k] + ch.memory[i] > ch.scale_memory[k] + 1e-9:

@@ -1,16 +1,23 @@
 #!/usr/bin/python3
 """Live migration on the two-scale test bed (root): per node, the gap on its output topic as
-the robot's subscribers see it during a planned move and during a link-loss move back, the
-reaction time from link down to the node publishing on the robot again, and the decision
-node's CPU. Goals (issue 5): planned-move gap <= 1.0 s, reaction <= 1.0 s, decision node
-<= 3 % of a core.
+the robot's subscribers see it during a planned move out, a planned move back (the link
+cannot carry it), and a link-loss move back, the reaction time from link down to the node
+publishing on the robot again, and the decision node's CPU. Every column gives the median and
+the worst move, and how many moves left the output silent longer than its tolerance (Table I:
+AMCL 2 s, AR 1 s). Goals (issue 12): a planned move's gap <= one period of the node's
+freq_min (AMCL 0.5 s, AR 1 s); every gap within the tolerance.
 
-The navigation demo (AMCL, AR recognition) runs twice, with the agents' warm standbys of the
-rospy nodes and without them (every start imports anew), and a stock topic_tools relay
-(roscpp: no standby) once, each with a link schedule that repeats: good link (the nodes move
-out after T), link down (they come back). Warm and cold runs share the machine's load of the
-moment, so their ratio is the figure to read. Run with the workspace sourced:
-    sudo -E /usr/bin/python3 tests/bench/bench_live_migration.py [--cycles 3]
+Links (--link):
+  clean  the scripted cycle of the earlier bench: 27 Mbit/s (the nodes move out after T), then
+         down. The navigation demo runs with the agents' warm standbys and without them (every
+         start imports anew), and a stock topic_tools relay (roscpp: no standby); warm and cold
+         share the machine's load of the moment, so their ratio is the figure to read.
+  thin   the main job's conditions: per cycle 12 Mbit/s (both nodes move out), then 4.5 Mbit/s
+         with AR's 6 Mbit/s camera stream on it (AR must come back, AMCL stays on the congested
+         link), then down.
+  both   (default) all of the above.
+Run with the workspace sourced:
+    sudo -E /usr/bin/python3 tests/bench/bench_live_migration.py [--cycles 3] [--link thin]
 """
 import argparse
 import glob
@@ -32,10 +39,18 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 
 
-def cycle_schedule(cycles: int, up_s: float, down_s: float):
+TOLERANCE_S = {"amcl": 2.0, "ar_recognition": 1.0, "relay": 2.0}
+
+
+def cycle_schedule(cycles: int, up_s: float, down_s: float, thin: bool = False):
+    """[[t, Mbit/s], ...]: per cycle up_s of good link (the second half at 4.5 Mbit/s when
+    thin), then down_s of link down; and the run's duration."""
     steps, t = [], 0.0
     for _ in range(cycles):
-        steps += [[t, 27], [t + up_s, 0]]
+        if thin:
+            steps += [[t, 12], [t + up_s / 2, 4.5], [t + up_s, 0]]
+        else:
+            steps += [[t, 27], [t + up_s, 0]]
         t += up_s + down_s
     steps.append([t, 27])
     return steps, t + 20.0          # the last move out (after T) is seen to its end
@@ -79,8 +94,8 @@ class ProcessCpu(threading.Thread):
         return 100.0 * (self.last[1] - self.first[1]) / (self.last[2] - self.first[2])
 
 
-def run_nav(cycles, up_s, down_s, out, warm):
-    steps, duration = cycle_schedule(cycles, up_s, down_s)
+def run_nav(cycles, up_s, down_s, out, warm, thin=False):
+    steps, duration = cycle_schedule(cycles, up_s, down_s, thin)
     cpu = ProcessCpu("anyscale_decision")
     cpu.start()
     done = subprocess.run(
@@ -115,17 +130,20 @@ def run_relay(cycles, up_s, down_s, out):
 
 
 def node_figures(rec: TestbedRecord, outputs):
-    """{node: (planned gaps, link-loss gaps, reactions)} in seconds; a move the run did not see
-    to its end is left out."""
+    """{node: (planned gaps out, planned gaps back, link-loss gaps, reactions)} in seconds; a
+    move the run did not see to its end, or whose window a silence it did not cause began
+    before, is left out."""
     downs = [t for t, up in link_transitions(rec.bandwidth) if not up]
     out = {}
     for f in move_figures(rec, outputs):
-        planned, lost, reaction = out.setdefault(f.event.node, ([], [], []))
+        planned, back, lost, reaction = out.setdefault(f.event.node, ([], [], [], []))
         if math.isnan(f.output_gap_s):
             continue
         if f.event.kind == "migrate":
             planned.append(f.output_gap_s)
-        elif "down" in f.event.reason:
+        elif not f.event.reason.startswith("link to"):
+            back.append(f.output_gap_s)
+        else:
             lost.append(f.output_gap_s)
             down = max((t for t in downs if t <= f.event.decided_t), default=None)
             if down is not None:
@@ -134,11 +152,12 @@ def node_figures(rec: TestbedRecord, outputs):
     return out
 
 
-def describe(values):
+def describe(values, tolerance=math.inf):
     if not values:
         return "-"
-    return (f"median {statistics.median(values):.2f} s, max {max(values):.2f} s "
-            f"(n={len(values)})")
+    over = sum(v > tolerance for v in values)
+    return (f"{statistics.median(values):.2f} / {max(values):.2f} s (n={len(values)}"
+            + (f", {over} > {tolerance:g} s" if over else "") + ")")
 
 
 def ratio(cold, warm):
@@ -152,36 +171,51 @@ def main(argv=None):
     p.add_argument("--cycles", type=int, default=3, help="good-link/link-down cycles (3)")
     p.add_argument("--up", type=float, default=25.0, help="seconds of good link per cycle")
     p.add_argument("--down", type=float, default=8.0, help="seconds of link down per cycle")
+    p.add_argument("--link", choices=("clean", "thin", "both"), default="both",
+                   help="clean: 27 Mbit/s cycles (warm, cold, relay); thin: 12 then 4.5 Mbit/s "
+                        "with AR's stream on it (warm); both (default)")
     args = p.parse_args(argv)
     missing = missing_capabilities()
     if missing:
         sys.exit("bench: the test bed needs " + "; ".join(missing))
-    with tempfile.TemporaryDirectory(prefix="bench_live_") as out:
-        print(f"[1/3] navigation demo with warm standbys, {args.cycles} cycles ...", flush=True)
-        warm, warm_cpu = run_nav(args.cycles, args.up, args.down, os.path.join(out, "warm"), True)
-        print(f"[2/3] navigation demo, cold starts, {args.cycles} cycles ...", flush=True)
-        cold, cold_cpu = run_nav(args.cycles, args.up, args.down, os.path.join(out, "cold"), False)
-        print(f"[3/3] stock topic_tools relay, {args.cycles} cycles ...", flush=True)
-        os.makedirs(os.path.join(out, "relay"))
-        relay = run_relay(args.cycles, args.up, args.down, os.path.join(out, "relay"))
+    runs = ([("warm", "clean"), ("cold", "clean"), ("relay", "clean")]
+            if args.link != "thin" else []) + ([("warm", "thin")] if args.link != "clean" else [])
     nav_outputs = {"amcl": "/amcl_pose", "ar_recognition": "/ar_markers"}
-    rows = [(f"{n} (warm)", f) for n, f in node_figures(warm, nav_outputs).items()]
-    rows += [(f"{n} (cold)", f) for n, f in node_figures(cold, nav_outputs).items()]
-    rows += list(node_figures(relay, {"relay": "/chatter_relay"}).items())
-    print("\nnode                   planned move: output gap          link loss: output gap"
-          "             reaction (link down -> output on the robot)")
-    for node, (planned, lost, reaction) in rows:
-        print(f"{node:<22} {describe(planned):<34} {describe(lost):<34} {describe(reaction)}")
-    figures = {name: f for name, f in rows}
-    print("\ncold / warm (medians, same machine, one after the other):")
-    for node in nav_outputs:
-        w, c = figures.get(f"{node} (warm)"), figures.get(f"{node} (cold)")
-        if w and c:
-            print(f"  {node:<16} planned gap {ratio(c[0], w[0])}, link-loss gap "
-                  f"{ratio(c[1], w[1])}, reaction {ratio(c[2], w[2])}")
-    print(f"\ndecision node CPU: {warm_cpu:.2f} % (warm run), {cold_cpu:.2f} % (cold run) of "
-          "one core (goal <= 3 %)")
-    print("goals: planned-move gap <= 1.0 s, reaction <= 1.0 s")
+    rows, cpu = [], {}
+    with tempfile.TemporaryDirectory(prefix="bench_live_") as out:
+        for k, (kind, link) in enumerate(runs, 1):
+            label = {"warm": "navigation demo with warm standbys", "cold": "navigation demo, "
+                     "cold starts", "relay": "stock topic_tools relay"}[kind]
+            print(f"[{k}/{len(runs)}] {label}, {link} link, {args.cycles} cycles ...", flush=True)
+            where = os.path.join(out, f"{kind}_{link}")
+            os.makedirs(where)
+            if kind == "relay":
+                figures = node_figures(run_relay(args.cycles, args.up, args.down, where),
+                                       {"relay": "/chatter_relay"})
+            else:
+                rec, cpu[(kind, link)] = run_nav(args.cycles, args.up, args.down, where,
+                                                 kind == "warm", link == "thin")
+                figures = node_figures(rec, nav_outputs)
+            rows += [(n, f"{kind}, {link}", f) for n, f in figures.items()]
+    print("\nmedian / worst output gap per kind of move, and the reaction to a link loss")
+    print(f"{'node':<16} {'run':<12} {'planned out':<26} {'planned back':<26} "
+          f"{'link loss':<26} reaction")
+    for node, run, (planned, back, lost, reaction) in rows:
+        tol = TOLERANCE_S.get(node, math.inf)
+        print(f"{node:<16} {run:<12} {describe(planned, tol):<26} {describe(back, tol):<26} "
+              f"{describe(lost, tol):<26} {describe(reaction, tol)}")
+    figures = {(n, r): f for n, r, f in rows}
+    if ("warm", "clean") in cpu and ("cold", "clean") in cpu:
+        print("\ncold / warm (medians, same machine, one after the other):")
+        for node in nav_outputs:
+            w, c = figures.get((node, "warm, clean")), figures.get((node, "cold, clean"))
+            if w and c:
+                print(f"  {node:<16} planned gap {ratio(c[0], w[0])}, link-loss gap "
+                      f"{ratio(c[2], w[2])}, reaction {ratio(c[3], w[3])}")
+    print("\ndecision node CPU: " + ", ".join(f"{v:.2f} % ({k[0]}, {k[1]})"
+                                             for k, v in cpu.items()) + " of one core")
+    print("goals: planned-move gap <= one period of freq_min (AMCL 0.5 s, AR 1 s); every gap "
+          "within its tolerance (AMCL 2 s, AR 1 s)")
 
 
 if __name__ == "__main__":

@@ -53,15 +53,16 @@ void LinkEstimator::answered(uint32_t seq, double t)
     record(rtt);
     return;
   }
-  double small = 0.0;
-  std::size_t n = 0;
+  // The link's floor (the least recent RTT), not the mean: the echo runs on a busy robot, and
+  // a mean that holds its scheduling delays can exceed the delay this probe met, which read a
+  // 27 Mbit/s link as 36. With the floor, such delays count as transfer time: the estimate
+  // errs low, the safe side for deciding whether a stream fits.
+  double small = std::numeric_limits<double>::infinity();
   for (double r : results_)
     if (!std::isnan(r))
-    {
-      small += r;
-      ++n;
-    }
-  small = n ? small / double(n) : 0.0;
+      small = std::min(small, r);
+  if (std::isinf(small))
+    small = 0.0;
   // 50 us floor: on loopback the difference is within timer noise and would divide by ~0.
   const double transfer = std::max(rtt - small, 50e-6);
   const double mbps = 8.0 * double(p.bytes) / transfer / 1e6;
@@ -96,8 +97,12 @@ LinkSample LinkEstimator::stats(double now)
   LinkSample s;
   s.rtt_s = last_rtt_;
   s.last_answer_t = last_answer_t_;
-  s.bandwidth_mbps = bandwidth_mbps_;
   s.up = !std::isnan(last_answer_t_) && now - last_answer_t_ <= timeout_s_;
+  // A link that was lost has shown nothing since: the estimate from before the loss (another
+  // place, another access point) must not stand for it until the next bulk probe answers.
+  if (!s.up)
+    bandwidth_mbps_ = kNaN;
+  s.bandwidth_mbps = bandwidth_mbps_;
   double sum = 0.0;
   std::size_t answered = 0;
   for (double r : results_)

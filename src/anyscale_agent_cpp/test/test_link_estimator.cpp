@@ -63,3 +63,35 @@ TEST(LinkEstimator, BandwidthFallsAtOnceAndRisesSmoothly)
   e.answered(4, 4.1);  // 10 Mbit/s again: only half-way there
   EXPECT_NEAR(e.stats(4.1).bandwidth_mbps, 5.5, 1e-6);
 }
+
+TEST(LinkEstimator, ALostLinkForgetsItsBandwidthUntilTheNextBulkAnswer)
+{
+  LinkEstimator e(1.0, 10, 1.0);
+  e.sent(1, 0.0, 20, false);
+  e.answered(1, 0.0);
+  e.sent(2, 1.0, 125000, true);
+  e.answered(2, 1.1);  // 10 Mbit/s where the robot was
+  EXPECT_NEAR(e.stats(1.2).bandwidth_mbps, 10.0, 1e-6);
+  e.sent(3, 2.0, 20, false);                      // the link goes: unanswered
+  EXPECT_FALSE(e.stats(3.5).up);
+  EXPECT_TRUE(std::isnan(e.stats(3.5).bandwidth_mbps));
+  e.sent(4, 4.0, 20, false);
+  e.answered(4, 4.0);                             // back, elsewhere: up, nothing measured yet
+  EXPECT_TRUE(e.stats(4.1).up);
+  EXPECT_TRUE(std::isnan(e.stats(4.1).bandwidth_mbps));
+  e.sent(5, 5.0, 125000, true);
+  e.answered(5, 5.5);                             // 2 Mbit/s here
+  EXPECT_NEAR(e.stats(5.6).bandwidth_mbps, 2.0, 1e-6);
+}
+
+TEST(LinkEstimator, ADelayedEchoDoesNotInflateTheBandwidth)
+{
+  LinkEstimator e(5.0, 10, 1.0);
+  e.sent(1, 0.0, 20, false);
+  e.answered(1, 0.002);  // the link's floor: 2 ms
+  e.sent(2, 0.5, 20, false);
+  e.answered(2, 0.540);  // an echo the busy robot scheduled 38 ms late
+  e.sent(3, 1.0, 125000, true);
+  e.answered(3, 1.102);  // 1 Mbit, 100 ms over the floor: 10 Mbit/s, not 12.3 (the mean's)
+  EXPECT_NEAR(e.stats(1.2).bandwidth_mbps, 10.0, 1e-6);
+}

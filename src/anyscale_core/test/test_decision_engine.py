@@ -72,16 +72,20 @@ def test_weak_link_sends_ar_back_and_keeps_amcl(engine):
     assert remote(engine) == ["amcl"]
 
 
-def test_link_loss_brings_both_back_without_talking_to_the_laptop(engine):
+def test_a_silent_laptop_brings_both_back_and_is_only_sent_best_effort_stops(engine):
     for t in (1.0, 2.0):
         engine.tick(reports(t), t)
-    # The laptop's reports stop: stale after status_timeout_s.
+    # The laptop's reports stop (stale after status_timeout_s); the robot's uplink keeps its
+    # carrier: the link may be saturated rather than gone.
     stale = reports(2.0)
     result = engine.tick({**stale, "robot": reports(4.0)["robot"]}, 4.0)
     assert remote(engine) == []
-    assert all(a.scale == "robot" for a in result.actions)          # no stop sent to the laptop
     assert {a.node for a in result.actions if isinstance(a, StartNode)} == \
         {"amcl", "ar_recognition"}
+    assert all(a.scale == "robot" for a in result.actions if isinstance(a, StartNode))
+    stops = [a for a in result.actions if isinstance(a, StopNode)]
+    assert {(a.node, a.scale, a.best_effort) for a in stops} == \
+        {("amcl", "laptop", True), ("ar_recognition", "laptop", True)}
     assert not any(isinstance(a, RenewLeases) for a in result.actions)
 
 
@@ -159,9 +163,11 @@ def test_a_move_whose_new_instance_never_published_stays_and_is_held(engine):
     assert engine.move_failed("amcl", "robot", "laptop", 16.0) is None  # moved again: stands
 
 
-def test_a_link_loss_return_starts_without_stopping(engine):
+def test_a_carrier_loss_return_starts_without_stopping(engine):
     engine.tick(reports(1.0), 1.0)
-    result = engine.tick({"robot": reports(4.0)["robot"]}, 4.0)       # laptop silent
+    now = reports(4.0)
+    robot = dataclasses.replace(now["robot"], link_up=False)        # the uplink's carrier
+    result = engine.tick({"robot": robot}, 4.0)
     assert not any(isinstance(a, StopNode) for a in result.actions)
 
 
@@ -354,3 +360,14 @@ def test_every_allocator_respects_the_hold(testbed_ch, allocator):
     for t in range(1, 6):
         e.tick(reports(float(t), bandwidth=7.0), float(t))   # carries AR, not with 30 % more
     assert remote(e) == ["amcl"]
+
+
+def test_a_link_not_measured_yet_lets_nothing_out(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"), DecisionParams(bandwidth_hold_s=2.0))
+    e.adopt_or_start(reports(0.0), 0.0)
+    for t in range(0, 6):                     # up, but no bulk probe answered yet: NaN
+        e.tick(reports(float(t), bandwidth=math.nan), float(t))
+    assert remote(e) == []
+    for t in range(6, 10):
+        e.tick(reports(float(t), bandwidth=20.0), float(t))
+    assert remote(e) == ["amcl", "ar_recognition"]

@@ -21,7 +21,9 @@ struct LinkSample
 };
 
 // Small probes give RTT and loss; a bulk probe of B bytes, whose echo is small, takes about
-// RTT + B / bandwidth, so bandwidth ~ 8 B / (RTT_bulk - RTT_small). This is a packet-train
+// RTT + B / bandwidth, so bandwidth ~ 8 B / (RTT_bulk - RTT_floor), RTT_floor being the least
+// RTT of the recent small probes. A link that is lost forgets its bandwidth: until the next
+// bulk probe answers, it is unknown (NaN). This is a packet-train
 // estimate on the same TCP connection the data uses, not a saturation test: it costs B bytes
 // per bulk period, and it reads low while TCP's window is still opening (slow start after idle).
 // A lower estimate replaces the current one at once; a higher one is blended in with

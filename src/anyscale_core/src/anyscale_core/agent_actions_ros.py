@@ -51,6 +51,10 @@ class AgentActions:
             elif action is handover:
                 threading.Thread(target=self._hand_over, args=(node, action, watch, pid),
                                  daemon=True).start()
+            elif action.best_effort:
+                # Not waited for: it ends before the lease does, or not at all.
+                threading.Thread(target=self._stop, args=(node, action.scale, True),
+                                 daemon=True).start()
             else:
                 self._stop(node, action.scale)
 
@@ -106,15 +110,17 @@ class AgentActions:
                                 math.nan, False)
             self._publish_mapping()
 
-    def _stop(self, node, scale):
-        if not self.link_up.get(scale, True):
+    def _stop(self, node, scale, best_effort=False):
+        if not best_effort and not self.link_up.get(scale, True):
             return          # out of reach: its lease ends it there
         try:
-            reply = self.agents.stop(scale, node)
+            reply = self.agents.stop(scale, node, self.params.engine.lease_s if best_effort
+                                     else None)
             if not reply.success:
                 rospy.logwarn("anyscale decision: stop %s on %s: %s", node, scale, reply.message)
         except Exception as e:  # noqa: BLE001 - its lease ends it anyway
-            rospy.logwarn("anyscale decision: stop %s on %s failed: %s", node, scale, e)
+            if not best_effort:
+                rospy.logwarn("anyscale decision: stop %s on %s failed: %s", node, scale, e)
 
     def _start(self, action: StartNode, event, stamp, decided, handover=None) -> int:
         """Starts the node; its pid, or 0 if the start failed (then handled here)."""

@@ -54,9 +54,9 @@ class AgentClient:
         return self.call(scale, "start_node", node=node, param_overrides=overrides,
                          lease_s=lease_s)
 
-    def stop(self, scale, node):
-        return self.call(scale, "stop_node", self.stop_timeout_s, node=node, wait=True,
-                         sigint_timeout_s=self.stop_sigint_timeout_s)
+    def stop(self, scale, node, timeout_s=None):
+        return self.call(scale, "stop_node", timeout_s or self.stop_timeout_s, node=node,
+                         wait=True, sigint_timeout_s=self.stop_sigint_timeout_s)
 
     def renew(self, scale, nodes, lease_s):
         return self.call(scale, "renew_leases", min(self.timeout_s, lease_s), nodes=list(nodes),

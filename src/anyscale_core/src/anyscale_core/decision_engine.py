@@ -80,6 +80,10 @@ class StopNode:
     # Make before break: stop only once the node's new instance on this scale has published
     # its output ("" = stop at once).
     after_output_on: str = ""
+    # The scale counts as out of reach (its status went silent) while the master's uplink still
+    # has its carrier: the link may be saturated rather than gone, and a stop that gets through
+    # ends the old instance's stream before its lease does. Sent, but not waited for.
+    best_effort: bool = False
 
 
 @dataclass(frozen=True)
@@ -157,7 +161,9 @@ class DecisionEngine:
         state = self.dynamic_state(reports, now)
         up = state.up_vector(self.ch)
         remote_up = any(up[k] for k in range(self.ch.num_scales) if k != self.ch.master)
-        self.bandwidth_hold.add(now, state.bandwidth_mbps if remote_up else 0.0)
+        measured = self._measured_bandwidth(reports, now)
+        # Nothing measured (a link that just came back) has shown nothing: 0 for moves out.
+        self.bandwidth_hold.add(now, measured if remote_up and math.isfinite(measured) else 0.0)
         state = replace(state, admit_bandwidth_mbps=self.bandwidth_hold.admissible(now))
         if not moves_allowed:
             restarts, restart_events = self._restarts(reports, up, now, starting)
@@ -178,6 +184,8 @@ class DecisionEngine:
             actions.append(self._start(move.node, move.target))
             if up[move.source]:
                 actions.append(StopNode(name, source, after_output_on=target))
+            elif self._carrier_up(reports):
+                actions.append(StopNode(name, source, best_effort=True))
             events.append(Event("migrate_back" if back else "migrate", name, source, target,
                                 move.reason))
             if back:
@@ -251,6 +259,18 @@ class DecisionEngine:
                                               self._background_load(report))
         bandwidth = min(estimates) if estimates else self.ch.model.network.max_bandwidth_mbps
         return DynamicState(bandwidth, loads, link_up)
+
+    def _measured_bandwidth(self, reports: Mapping[str, ScaleReport], now: float) -> float:
+        """The least fresh estimate of the remote scales' links; NaN if none has one."""
+        fresh = [r.bandwidth_mbps for s, r in reports.items()
+                 if s != self.ch.scale_names[self.ch.master]
+                 and now - r.received_at <= self.params.status_timeout_s
+                 and math.isfinite(r.bandwidth_mbps)]
+        return min(fresh) if fresh else math.nan
+
+    def _carrier_up(self, reports: Mapping[str, ScaleReport]) -> bool:
+        master = reports.get(self.ch.scale_names[self.ch.master])
+        return master is not None and master.link_up
 
     def _background_load(self, report: ScaleReport) -> float:
         """Scale CPU not explained by the model's nodes running there (% of the scale). Warm

@@ -90,14 +90,13 @@ class AgentActions:
             registered = wait_registered(self.model.instance_name(node, target), pid,
                                          self.caller_id, self.params.handover_timeout_s)
             outcome = PUBLISHED if registered else TIMED_OUT
-        if outcome == PUBLISHED:
-            rospy.loginfo("anyscale decision: %s on %s published %.2f s after its start; "
-                          "stopping the instance on %s", node, target,
-                          time.monotonic() - began, source)
         if outcome != TIMED_OUT:
-            # Moved on meanwhile (a link loss brought it back): the old instance is where the
-            # node runs now, unless it went to a third scale.
+            # Moved back meanwhile (a link loss): the old instance is where the node runs now.
             if assigned() != source:
+                if outcome == PUBLISHED:
+                    rospy.loginfo("anyscale decision: %s on %s published %.2f s after its "
+                                  "start; stopping the instance on %s", node, target,
+                                  time.monotonic() - began, source)
                 self._stop(node, source)
             return
         rospy.logwarn("anyscale decision: %s on %s did not publish within %.1f s; it stays on %s",

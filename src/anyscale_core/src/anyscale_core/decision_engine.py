@@ -242,7 +242,7 @@ class DecisionEngine:
     # --- inside -------------------------------------------------------------------------------
     def dynamic_state(self, reports: Mapping[str, ScaleReport], now: float) -> DynamicState:
         master = self.ch.scale_names[self.ch.master]
-        link_up, loads, estimates = {}, {}, []
+        link_up, loads = {}, {}
         # The master's uplink without carrier cuts every remote scale off at once; their own
         # reports would only say so after status_timeout_s of silence.
         master_report = reports.get(master)
@@ -252,12 +252,14 @@ class DecisionEngine:
             fresh = report is not None and now - report.received_at <= self.params.status_timeout_s
             if scale != master:
                 link_up[scale] = bool(fresh and report.link_up and uplink)
-                if fresh and math.isfinite(report.bandwidth_mbps):
-                    estimates.append(report.bandwidth_mbps)
             if report is not None:
                 loads[scale] = self._smoothed(scale, report.received_at,
                                               self._background_load(report))
-        bandwidth = min(estimates) if estimates else self.ch.model.network.max_bandwidth_mbps
+        # Until a link is measured, the paper's nominal figure: nothing that is out comes back
+        # for want of a measurement (a move out needs one, see BandwidthHold).
+        measured = self._measured_bandwidth(reports, now)
+        bandwidth = measured if math.isfinite(measured) else \
+            self.ch.model.network.max_bandwidth_mbps
         return DynamicState(bandwidth, loads, link_up)
 
     def _measured_bandwidth(self, reports: Mapping[str, ScaleReport], now: float) -> float:

@@ -349,7 +349,7 @@ std::vector<anyscale_msgs::NodeProcess> AgentNode::nodeProcesses()
       }
     const double age = std::chrono::duration<double>(steady - p.started).count();
     m.started = now - ros::Duration(std::min(age, now.toSec()));
-    if (const auto expiry = leases_.expiry(p.name))
+    if (const auto expiry = p.state != ProcState::Standby ? leases_.expiry(p.name) : std::nullopt)
       m.lease_expiry = now + ros::Duration(std::max(0.0, *expiry - steady_s));
     m.log_file = p.log_file;
     out.push_back(m);

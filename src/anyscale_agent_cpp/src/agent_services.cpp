@@ -38,9 +38,9 @@ bool isPythonScript(const std::string& path)
   return first_line.rfind("#!", 0) == 0 && first_line.find("python") != std::string::npos;
 }
 
-bool isStandby(const std::optional<ProcessInfo>& info)
+bool isWaiting(const std::optional<ProcessInfo>& standby)
 {
-  return info && info->pid != 0 && info->state == ProcState::Standby;
+  return standby && standby->pid != 0 && standby->state == ProcState::Standby;
 }
 }  // namespace
 
@@ -93,7 +93,7 @@ bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::S
       }
       ROS_INFO("start of %s waited for its previous instance (pid %d) to end", name.c_str(), stopping->pid);
     }
-    if (const auto running = supervisor_.info(name); running && running->pid != 0 && !isStandby(running))
+    if (const auto running = supervisor_.info(name); running && running->pid != 0)
     {
       // Starting is idempotent: the decision node asks for a node where it must run, and a
       // planned move that a link loss interrupts asks for the old instance it had not stopped.
@@ -115,7 +115,7 @@ bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::S
   const std::string log_file = logFile(decl->name);
   std::string error;
   // A warm standby becomes the node; if it died meanwhile, the node starts cold as usual.
-  int pid = isStandby(supervisor_.info(name)) ? supervisor_.activate(name, &error) : 0;
+  int pid = isWaiting(supervisor_.standby(name)) ? supervisor_.activate(name, &error) : 0;
   const bool warm = pid > 0;
   if (!warm)
     pid = supervisor_.start(name, argv, log_file, &error);
@@ -150,7 +150,7 @@ bool AgentNode::onStop(anyscale_msgs::StopNode::Request& req, anyscale_msgs::Sto
     leases_.remove(name);
   }
   const auto before = supervisor_.info(name);
-  if (!before || before->pid == 0 || isStandby(before))
+  if (!before || before->pid == 0)
   {
     res.message = name + " is not running on scale " + scale_ +
                   (before ? " (it " + std::string(toString(before->state)) + ")" : "");
@@ -225,7 +225,7 @@ bool AgentNode::onRenew(anyscale_msgs::RenewLeases::Request& req, anyscale_msgs:
   {
     const std::string name = qualified(node);
     const auto info = supervisor_.info(name);
-    if (!info || info->pid == 0 || info->state == ProcState::Stopping || info->state == ProcState::Standby)
+    if (!info || info->pid == 0 || info->state == ProcState::Stopping)
     {
       res.not_running.push_back(node);
       res.success = false;
@@ -266,29 +266,36 @@ void AgentNode::keepStandbysReady()
   if (!warm_start_)
     return;
   const double now = steadyNow();
+  const auto steady = std::chrono::steady_clock::now();
   for (const auto& node : model_.names())
   {
     const NodeDecl* decl = model_.find(node);
     if (!decl->warm_start)
       continue;
     const std::string name = qualified(node);
-    const auto info = supervisor_.info(name);
+    if (const auto waiting = supervisor_.standby(name); waiting && waiting->pid != 0)
+      continue;
+    // Also while the node runs here: it is ready the moment the node leaves or ends.
     double& due = standby_due_.emplace(name, now).first->second;
-    if (info && info->pid != 0)
+    const auto running = supervisor_.info(name);
+    if (running && running->pid != 0 && running->pid == last_standby_pid_[name])
     {
-      if (info->state != ProcState::Standby)
-        due = now + standby_delay_s_;  // prepared once the node has been gone this long
-      continue;
+      // The last standby became the node: the next one once the node's own start is over.
+      if (std::chrono::duration<double>(steady - running->started).count() < standby_delay_s_)
+        continue;
     }
-    if (now < due)
-      continue;
-    due = now + kStandbyRetryS;  // a standby that dies by itself is not restarted in a loop
+    else if (now < due)
+    {
+      continue;  // the last one ended by itself: not again at once
+    }
+    due = now + kStandbyRetryS;
     std::string error;
     try
     {
       const int pid = supervisor_.startStandby(name, standbyArgv(*decl), logFile(node), &error);
+      last_standby_pid_[name] = pid;
       if (pid > 0)
-        ROS_INFO("warm standby of %s ready to start (pid %d)", name.c_str(), pid);
+        ROS_INFO("warm standby of %s started (pid %d)", name.c_str(), pid);
       else
         ROS_WARN("warm standby of %s: %s; retrying in %.0f s", name.c_str(), error.c_str(), kStandbyRetryS);
     }

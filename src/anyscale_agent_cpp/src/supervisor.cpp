@@ -113,9 +113,11 @@ int Supervisor::launch(const std::string& name, const std::vector<std::string>& 
   };
   if (argv.empty() || argv[0].empty() || argv[0][0] != '/')
     return fail("executable must be an absolute path");
-  const auto existing = records_.find(name);
-  if (existing != records_.end() && isAlive(existing->second))
-    return fail("node '" + name + "' is already running here (pid " + std::to_string(existing->second.info.pid) + ")");
+  auto& slots = standby ? standbys_ : records_;
+  const auto existing = slots.find(name);
+  if (existing != slots.end() && isAlive(existing->second))
+    return fail(std::string(standby ? "a standby of '" : "node '") + name + "' is already running here (pid " +
+                std::to_string(existing->second.info.pid) + ")");
 
   UniqueFd log(::open(log_file.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644));
   if (log.get() < 0)
@@ -159,7 +161,7 @@ int Supervisor::launch(const std::string& name, const std::vector<std::string>& 
   r.info.started = Clock::now();
   r.group = Group{pid, 0, Clock::time_point::max()};
   r.activation = std::move(activation);
-  records_[name] = std::move(r);
+  slots[name] = std::move(r);
   changed_.notify_all();
   return pid;
 }
@@ -168,26 +170,51 @@ int Supervisor::activate(const std::string& name, std::string* error)
 {
   std::lock_guard<std::mutex> lock(mutex_);
   reapLocked();  // a standby that died since the last poll must not count as ready
-  auto it = records_.find(name);
-  if (it == records_.end() || !isAlive(it->second) || it->second.info.state != ProcState::Standby)
-  {
+  auto fail = [&](const std::string& why) {
     if (error)
-      *error = "no warm standby of '" + name + "' is waiting";
+      *error = why;
     return 0;
-  }
+  };
+  auto it = standbys_.find(name);
+  if (it == standbys_.end() || !isAlive(it->second) || it->second.info.state != ProcState::Standby)
+    return fail("no warm standby of '" + name + "' is waiting");
+  if (const auto node = records_.find(name); node != records_.end() && isAlive(node->second))
+    return fail("'" + name + "' still runs here (pid " + std::to_string(node->second.info.pid) + ")");
   Record& r = it->second;
   static const char kStart[] = "start\n";
   if (::send(r.activation.get(), kStart, sizeof kStart - 1, MSG_NOSIGNAL) != ssize_t(sizeof kStart - 1))
-  {
-    if (error)
-      *error = "cannot activate the standby of '" + name + "': " + std::strerror(errno);
-    return 0;
-  }
+    return fail("cannot activate the standby of '" + name + "': " + std::strerror(errno));
   r.activation.reset();  // the node sees end-of-file on stdin, as with /dev/null
   r.info.state = ProcState::Starting;
   r.info.started = Clock::now();
+  const int pid = r.info.pid;
+  records_[name] = std::move(r);  // the standby is the node now
+  standbys_.erase(it);
   changed_.notify_all();
-  return r.info.pid;
+  return pid;
+}
+
+std::optional<ProcessInfo> Supervisor::standby(const std::string& name) const
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = standbys_.find(name);
+  if (it == standbys_.end())
+    return std::nullopt;
+  return it->second.info;
+}
+
+bool Supervisor::stopStandby(const std::string& name)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = standbys_.find(name);
+  if (it == standbys_.end() || !isAlive(it->second))
+    return false;
+  Record& r = it->second;
+  r.info.stop_requested = true;
+  r.activation.reset();
+  r.group.stage = 2;  // the next escalation is SIGKILL
+  escalate(r.group, Clock::now());
+  return true;
 }
 
 bool Supervisor::stop(const std::string& name, ProcState final_state, double kill_after_s)
@@ -260,24 +287,25 @@ void Supervisor::reapLocked()
     const pid_t pid = ::waitpid(-1, &status, WNOHANG);
     if (pid <= 0)
       break;
-    for (auto& [name, r] : records_)
-    {
-      if (r.info.pid != pid)
-        continue;
-      const bool was_standby = r.info.state == ProcState::Standby;
-      r.info.pid = 0;
-      r.info.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-      r.info.exit_signal = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
-      r.info.state = r.info.stop_requested ? r.final_state : ProcState::Exited;
-      r.activation.reset();
-      // A standby that ended was never a node: nothing for the node-exit handling to do.
-      if (!r.info.stop_requested && !was_standby)
-        unrequested_exits_.push_back(name);
-      // Members that outlive the leader are cleared the same way, continuing its sequence.
-      if (groupExists(r.group.pgid))
-        orphan_groups_.push_back(r.group);
-      changed_.notify_all();
-    }
+    for (auto* slots : {&records_, &standbys_})
+      for (auto& [name, r] : *slots)
+      {
+        if (r.info.pid != pid)
+          continue;
+        const bool was_standby = r.info.state == ProcState::Standby;
+        r.info.pid = 0;
+        r.info.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+        r.info.exit_signal = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
+        r.info.state = r.info.stop_requested ? r.final_state : ProcState::Exited;
+        r.activation.reset();
+        // A standby that ended was never a node: nothing for the node-exit handling to do.
+        if (!r.info.stop_requested && !was_standby)
+          unrequested_exits_.push_back(name);
+        // Members that outlive the leader are cleared the same way, continuing its sequence.
+        if (groupExists(r.group.pgid))
+          orphan_groups_.push_back(r.group);
+        changed_.notify_all();
+      }
   }
 }
 
@@ -286,9 +314,10 @@ void Supervisor::poll()
   std::lock_guard<std::mutex> lock(mutex_);
   reapLocked();
   const auto now = Clock::now();
-  for (auto& [name, r] : records_)
-    if (isAlive(r) && r.group.stage > 0 && now >= r.group.deadline)
-      escalate(r.group, now);
+  for (auto* slots : {&records_, &standbys_})
+    for (auto& [name, r] : *slots)
+      if (isAlive(r) && r.group.stage > 0 && now >= r.group.deadline)
+        escalate(r.group, now);
   for (auto& g : orphan_groups_)
     if (g.stage == 0 || now >= g.deadline)
       escalate(g, now);
@@ -348,8 +377,9 @@ std::vector<ProcessInfo> Supervisor::snapshot() const
 {
   std::lock_guard<std::mutex> lock(mutex_);
   std::vector<ProcessInfo> out;
-  for (const auto& [name, r] : records_)
-    out.push_back(r.info);
+  for (const auto* slots : {&records_, &standbys_})
+    for (const auto& [name, r] : *slots)
+      out.push_back(r.info);
   return out;
 }
 
@@ -364,23 +394,35 @@ std::vector<std::string> Supervisor::takeUnrequestedExits()
 void Supervisor::stopAll()
 {
   std::vector<std::string> names;
-  for (const auto& p : snapshot())
-    if (p.pid != 0)
-    {
-      stop(p.name);
-      names.push_back(p.name);
-    }
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& [name, r] : records_)
+      if (isAlive(r))
+        names.push_back(name);
+  }
+  for (const auto& n : names)
+    stop(n);
+  std::vector<std::string> standby_names;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& [name, r] : standbys_)
+      standby_names.push_back(name);
+  }
+  for (const auto& n : standby_names)
+    stopStandby(n);
   const double limit = options_.sigint_timeout_s + options_.sigterm_timeout_s + 5.0;
   for (const auto& n : names)
     waitGone(n, limit);
-  // Leftover members of groups whose leader is gone.
+  // Standbys, and leftover members of groups whose leader is gone.
   const auto deadline = Clock::now() + seconds(limit);
   for (;;)
   {
     poll();
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      if (orphan_groups_.empty() || Clock::now() >= deadline)
+      const bool standby_alive = std::any_of(standbys_.begin(), standbys_.end(),
+                                             [](const auto& kv) { return isAlive(kv.second); });
+      if ((orphan_groups_.empty() && !standby_alive) || Clock::now() >= deadline)
         break;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(20));

@@ -103,8 +103,9 @@ class AgentServicesTest(unittest.TestCase):
         self.assertFalse(stop.success)
 
     def _standby(self, node, agent=None):
-        info = (agent or self.agent).node(node)
-        return info if info is not None and info.state == NodeProcess.STANDBY else None
+        """The waiting standby of `node` (listed after the node itself, which may run)."""
+        return next((n for n in (agent or self.agent).list().nodes
+                     if n.name == node and n.state == NodeProcess.STANDBY), None)
 
     def test_warm_standby_becomes_the_node_and_is_prepared_again(self):
         standby = wait_for(lambda: self._standby("/warm_talker"), 20.0)
@@ -124,13 +125,19 @@ class AgentServicesTest(unittest.TestCase):
         self.assertEqual(wait_for(lambda: registered_pid("/warm_talker"), 20.0), res.pid)
         from std_msgs.msg import String
         rospy.wait_for_message("/warm_chatter", String, timeout=10.0)   # its remap in effect
+        # ~standby_delay_s (2 s) after the node's start, the next standby waits beside it.
+        again = wait_for(lambda: self._standby("/warm_talker"), 15.0)
+        self.assertTrue(again, "no new standby while the node runs")
+        self.assertNotEqual(again.pid, res.pid)
+        self.assertEqual(self.agent.node("/warm_talker").pid, res.pid)  # the node is listed first
         stop = self.agent.stop(node="warm_talker", wait=True)
         self.assertTrue(stop.success, stop.message)
         self.assertFalse(alive(res.pid))
-        # ~standby_delay_s (2 s) after the node is gone, a new standby waits again.
-        again = wait_for(lambda: self._standby("/warm_talker"), 15.0)
-        self.assertTrue(again, "the standby was not prepared again after the stop")
-        self.assertNotEqual(again.pid, res.pid)
+        self.assertTrue(alive(again.pid), "stopping the node ended its standby")
+        # The next start takes that standby at once.
+        res2 = self._start("warm_talker")
+        self.assertEqual((res2.success, res2.pid), (True, again.pid), res2.message)
+        self.agent.stop(node="warm_talker", wait=True)
 
     def test_lease_renewed_keeps_running_then_expires(self):
         res = self._start("talker_cpp", lease_s=2.0)

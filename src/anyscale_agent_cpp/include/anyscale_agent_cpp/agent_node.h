@@ -58,7 +58,7 @@ private:
   void setStartPriority(const std::string& name, int pid, int nice);
   void endBoosts();  // on the supervision thread
 
-  // Warm standbys (agent_services.cpp): one per warm_start node that does not run here.
+  // Warm standbys (agent_services.cpp): one per warm_start node, also while it runs here.
   void keepStandbysReady();
   std::vector<std::string> standbyArgv(const NodeDecl& decl);
   std::string logFile(const std::string& node) const;  // <log_dir>/<name with '/' as '.'>.log
@@ -85,8 +85,9 @@ private:
   bool clear_params_ = true;
   double sample_period_s_ = 0.5;
   bool warm_start_ = true;          // ~warm_start: false ignores the model's launch.warm_start
-  double standby_delay_s_ = 2.0;    // a node's standby is prepared this long after it stopped
+  double standby_delay_s_ = 2.0;    // the next standby this long after the last one became the node
   std::map<std::string, double> standby_due_;  // node -> steady time its standby may start
+  std::map<std::string, int> last_standby_pid_;  // node -> pid of the standby started last
   int start_boost_nice_ = 0;         // ~start_boost_nice: a started node's nice for its first seconds
   double start_boost_s_ = 3.0;      // ~start_boost_s
   struct Boost

@@ -27,7 +27,7 @@ struct NodeDecl
   std::vector<std::string> args;
   std::vector<std::pair<std::string, std::string>> remaps;
   YAML::Node params;  // map of private parameters (may be null)
-  bool warm_start = false;  // keep a warm standby (scripts/python_standby) where it does not run
+  bool warm_start = false;  // keep a warm standby (scripts/python_standby) on every scale
   int nice = 0;             // CPU priority it runs at, -20..19 (roslaunch: launch-prefix="nice -n N")
 };
 

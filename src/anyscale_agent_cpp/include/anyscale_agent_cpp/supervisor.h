@@ -76,12 +76,19 @@ public:
 
   // Starts a warm standby of `name` the same way, but in state Standby and with a socket on its
   // stdin: argv is a program that prepares the node and waits for the line "start" (see
-  // scripts/python_standby). End of input (the agent's end) tells it to quit.
+  // scripts/python_standby). End of input (the agent's end) tells it to quit. A standby has a
+  // slot of its own beside the node's: it can wait while the node runs, so that it is ready
+  // the moment the node leaves or ends. A node brought back a few seconds after it left found
+  // no standby prepared in time, and started cold.
   int startStandby(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
                    std::string* error);
-  // Sends "start" to the standby of `name`, which becomes an ordinary Starting node; its pid,
-  // or 0 with the reason if there is no live standby.
+  // Sends "start" to the standby of `name`, which becomes the node (an ordinary Starting node);
+  // its pid, or 0 with the reason if there is no live standby or the node still runs.
   int activate(const std::string& name, std::string* error);
+  // The standby of `name`, if one was started (pid 0 once it ended).
+  std::optional<ProcessInfo> standby(const std::string& name) const;
+  // Ends the standby of `name` (SIGKILL: it holds no state); false if there is none alive.
+  bool stopStandby(const std::string& name);
 
   // Begins the stop sequence; returns at once. `final_state` is what the node shows once gone
   // (Exited, or LeaseExpired: then SIGKILL at once, no SIGINT/SIGTERM grace). With
@@ -103,7 +110,9 @@ public:
   // Sets the state a node that already exited shows (e.g. Replaced); false if it is alive.
   bool setFinalState(const std::string& name, ProcState state);
 
+  // The node `name` (never its standby).
   std::optional<ProcessInfo> info(const std::string& name) const;
+  // Every node, then every standby.
   std::vector<ProcessInfo> snapshot() const;
   // Names that exited since the previous call, without a stop request (crash, replacement).
   std::vector<std::string> takeUnrequestedExits();
@@ -137,7 +146,8 @@ private:
   SupervisorOptions options_;
   mutable std::mutex mutex_;
   std::condition_variable changed_;
-  std::map<std::string, Record> records_;
+  std::map<std::string, Record> records_;   // the nodes
+  std::map<std::string, Record> standbys_;  // their warm standbys
   std::vector<Group> orphan_groups_;  // leaders gone, members remain
   std::vector<std::string> unrequested_exits_;
 

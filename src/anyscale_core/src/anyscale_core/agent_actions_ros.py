@@ -91,13 +91,15 @@ class AgentActions:
                                          self.caller_id, self.params.handover_timeout_s)
             outcome = PUBLISHED if registered else TIMED_OUT
         if outcome != TIMED_OUT:
-            # Moved back meanwhile (a link loss): the old instance is where the node runs now.
-            if assigned() != source:
-                if outcome == PUBLISHED:
-                    rospy.loginfo("anyscale decision: %s on %s published %.2f s after its "
-                                  "start; stopping the instance on %s", node, target,
-                                  time.monotonic() - began, source)
-                self._stop(node, source)
+            if outcome == PUBLISHED:
+                rospy.loginfo("anyscale decision: %s on %s published %.2f s after its start; "
+                              "stopping the instance on %s", node, target,
+                              time.monotonic() - began, source)
+            # On the node's worker, after any start a later decision queued there, and only if
+            # the node is not meant to run on `source` by then: a link loss that brought it
+            # back while the new instance was publishing keeps the old instance.
+            self.node_workers[node].submit(lambda: assigned() != source and
+                                           self._stop(node, source))
             return
         rospy.logwarn("anyscale decision: %s on %s did not publish within %.1f s; it stays on %s",
                       node, target, self.params.handover_timeout_s, source)

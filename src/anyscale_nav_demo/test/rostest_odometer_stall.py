@@ -36,13 +36,19 @@ class OdometerStall(unittest.TestCase):
         start = rospy.get_time()
         ticks_per_s = WHEEL_RAD_S / (2 * math.pi) * TICKS_PER_REV
 
+        latched = [0]               # frames the encoder board has latched so far
+
         def publish_for(seconds):
+            # The board latches at 40 Hz whatever delivery does. Latching at this process's
+            # `now` put frames microseconds apart whenever a busy machine delayed the test
+            # and rospy.Rate caught up, and one tick over them read as 10+ rad/s.
             end = rospy.get_time() + seconds
             rate = rospy.Rate(RATE_HZ)
             while rospy.get_time() < end:
-                now = rospy.Time.now()
-                n = int((now.to_sec() - start) * ticks_per_s)
-                pub.publish(Int64MultiArray(data=[n, n, now.to_nsec()]))
+                latch = start + latched[0] / RATE_HZ
+                latched[0] += 1
+                n = int((latch - start) * ticks_per_s)
+                pub.publish(Int64MultiArray(data=[n, n, int(latch * 1e9)]))
                 rate.sleep()
 
         deadline = rospy.get_time() + 20.0

@@ -17,8 +17,8 @@ import subprocess
 import sys
 import time
 
-from anyscale_core.two_scale_testbed import (ScaleEnd, TwoScaleLayout, TwoScaleTestbed, missing_capabilities,
-                                             namespace_exec)
+from anyscale_testbed.two_scale_testbed import (ScaleEnd, TwoScaleLayout, TwoScaleTestbed,
+                                                missing_capabilities, namespace_exec)
 
 PID = os.getpid()
 LAYOUT = TwoScaleLayout(

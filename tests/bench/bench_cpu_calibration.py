@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Benchmark (prints, asserts nothing; needs root for cgroups): calibrates the CPU heterogeneity
 of the two-scale test bed. Runs the navigation demo with the robot's node set inside a cgroup v1
-CPU quota (anyscale_core.two_scale_testbed.CpuQuota) and measures, for each quota, the rates of
+CPU quota (anyscale_testbed.two_scale_testbed.CpuQuota) and measures, for each quota, the rates of
 Table I's connections and every node's CPU; then the laptop case: AMCL and AR alone in a second
 cgroup (on the same master), the rest of the robot in the robot's group.
 
@@ -34,8 +34,8 @@ import yaml
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
-sys.path.insert(0, os.path.join(ROOT, "src", "anyscale_core", "src"))
-from anyscale_core.two_scale_testbed import CpuQuota, cgroup_available  # noqa: E402
+sys.path.insert(0, os.path.join(ROOT, "src", "anyscale_testbed", "src"))
+from anyscale_testbed.two_scale_testbed import CpuQuota, cgroup_available  # noqa: E402
 
 PKG = os.path.join(ROOT, "src", "anyscale_nav_demo")
 CALIBRATION = os.path.join(PKG, "config", "testbed_calibration.yaml")

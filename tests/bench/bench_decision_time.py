@@ -8,12 +8,12 @@ import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "src",
-                                "anyscale_core", "src"))
-from anyscale_core import simulation as sim                         # noqa: E402
+SRC = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "src")
+sys.path[:0] = [os.path.join(SRC, pkg, "src") for pkg in ("anyscale_core", "anyscale_study")]
 from anyscale_core.allocators import ALLOCATORS, AllocationContext, make_allocator  # noqa: E402
 from anyscale_core.characterisation import characterise            # noqa: E402
 from anyscale_core.constraints import DynamicState                  # noqa: E402
+from anyscale_study import simulation as sim                        # noqa: E402
 
 SIZES = ((18, 9, 5), (200, 100, 20))
 GOALS_MS = {18: 5.0, 200: 100.0}           # for the default allocator (paper)

@@ -30,10 +30,10 @@ import tempfile
 import threading
 import time
 
-from anyscale_core.testbed_record import (TestbedRecord, link_transitions, move_figures,
-                                          reaction_s)
-from anyscale_core.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
-from anyscale_core.two_scale_testbed import missing_capabilities
+from anyscale_testbed.testbed_record import (TestbedRecord, link_transitions, move_figures,
+                                             reaction_s)
+from anyscale_testbed.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
+from anyscale_testbed.two_scale_testbed import missing_capabilities
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")

@@ -24,10 +24,10 @@ import time
 
 import yaml
 
-from anyscale_core.testbed_record import TestbedRecord
-from anyscale_core.tolerance_report import (format_markdown, format_table, row_cells, run_row,
-                                            topics_of, write_csv)
-from anyscale_core.two_scale_testbed import missing_capabilities
+from anyscale_testbed.testbed_record import TestbedRecord
+from anyscale_testbed.tolerance_report import (format_markdown, format_table, row_cells, run_row,
+                                               topics_of, write_csv)
+from anyscale_testbed.two_scale_testbed import missing_capabilities
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 RUN_TESTBED = os.path.join(ROOT, "scripts", "run_testbed.py")

@@ -67,3 +67,18 @@ def test_every_command_has_help(command, capsys):
         main([command, "--help"])
     assert done.value.code == 0
     assert "usage: anyscale " + command in capsys.readouterr().out
+
+
+def test_simulate_without_the_study_says_what_to_install(monkeypatch, capsys):
+    # None in sys.modules makes `import anyscale_study` fail as where it is not installed.
+    monkeypatch.setitem(sys.modules, "anyscale_study", None)
+    assert main(["simulate", "--runs", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["anyscale simulate: needs the package anyscale_study (the paper's Fig. 7 "
+                   "study); build or install it beside anyscale_core"]
+
+
+def test_unknown_options_of_other_commands_are_still_refused(testbed_path):
+    with pytest.raises(SystemExit) as done:
+        main(["check", testbed_path, "--runs", "1"])
+    assert done.value.code == 2

@@ -2,13 +2,14 @@
 watch a running system (top).
 
 Errors in the user's files are printed as one line naming the file and key, exit status 2.
+`simulate` lives in the anyscale_study package, which a robot does not need: it is imported
+only when the command runs, and where it is missing the command says what to install.
 """
 import argparse
 import json
 import sys
 from typing import List, Optional
 
-from . import simulation_report
 from .allocators import ALLOCATORS, AllocationContext, make_allocator
 from .characterisation import Characterisation, characterise, count_mappings
 from .constraints import DynamicState, load_state, required_bandwidth, violations
@@ -50,12 +51,11 @@ def build_parser() -> argparse.ArgumentParser:
                            '"solver": str}')
     plan.set_defaults(run=run_plan)
 
-    simulate = sub.add_parser("simulate", help="the paper's Fig. 7 simulation study",
-                              description="Simulate the paper's generalised test bed (Fig. 7) "
-                                          "and compare the heuristic, the exact optimum and "
-                                          "the best case with no migration.")
-    simulation_report.add_arguments(simulate)
-    simulate.set_defaults(run=simulation_report.main)
+    # Its options are the study's own (anyscale_study.simulation_report.add_arguments): main()
+    # hands them over unparsed and run_simulate parses them once the package is known to be there.
+    simulate = sub.add_parser("simulate", help="the paper's Fig. 7 simulation study "
+                                               "(package anyscale_study)", add_help=False)
+    simulate.set_defaults(run=run_simulate)
 
     top = sub.add_parser("top", help="live view of scales, nodes, connection rates and events",
                          description="A live terminal view of the running system: every "
@@ -149,6 +149,24 @@ def print_plan(ch: Characterisation, state: DynamicState, start, decision, resul
     print("feasible: yes" if result["feasible"] else "feasible: NO: " + "; ".join(broken))
 
 
+SIMULATE_DESCRIPTION = ("Simulate the paper's generalised test bed (Fig. 7) and compare the "
+                        "heuristic, the exact optimum and the best case with no migration.")
+
+
+def run_simulate(args) -> int:
+    try:
+        from anyscale_study import simulation_report
+    except ModuleNotFoundError as e:
+        if e.name != "anyscale_study":
+            raise
+        print("anyscale simulate: needs the package anyscale_study (the paper's Fig. 7 study); "
+              "build or install it beside anyscale_core", file=sys.stderr)
+        return EXIT_USAGE
+    parser = argparse.ArgumentParser(prog="anyscale simulate", description=SIMULATE_DESCRIPTION)
+    simulation_report.add_arguments(parser)
+    return simulation_report.main(parser.parse_args(args.options))
+
+
 def run_top(args) -> int:
     # Imported here: check, plan and simulate must work without ROS installed.
     from . import top_view
@@ -156,7 +174,12 @@ def run_top(args) -> int:
 
 
 def main(argv: Optional[List[str]] = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args, study_options = parser.parse_known_args(argv)
+    if args.command == "simulate":
+        args.options = study_options
+    elif study_options:
+        parser.error("unrecognized arguments: " + " ".join(study_options))
     try:
         return args.run(args)
     except ModelError as e:

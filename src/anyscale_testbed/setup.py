@@ -1,0 +1,6 @@
+# Installs the anyscale_testbed Python package (catkin_python_setup reads this).
+from setuptools import setup
+
+from catkin_pkg.python_setup import generate_distutils_setup
+
+setup(**generate_distutils_setup(packages=["anyscale_testbed"], package_dir={"": "src"}))

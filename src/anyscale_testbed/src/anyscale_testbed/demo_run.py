@@ -1,0 +1,187 @@
+"""The navigation demo on the two-scale test bed with AnyScale deciding.
+
+The robot and the laptop are network namespaces joined by a veth pair whose bandwidth follows a
+WiFi coverage model of the floor (or a scripted schedule); each scale's processes run under a
+cgroup CPU quota. The robot runs the master, the simulator, its agent and the decision node; the
+laptop runs its agent. Mapping changes are printed as they happen and a table at the end.
+Without root, namespaces or cgroups it says so and runs both scales on loopback, unshaped.
+
+This is the logic of scripts/run_testbed.py (the main job's second half). Run it with the
+workspace sourced (scripts/run_demo.sh does that):
+    sudo -E scripts/run_testbed.py                      # office floor, WiFi coverage model
+    scripts/run_testbed.py --link schedule --schedule '[[0, 27], [40, 3], [60, 0], [75, 27]]'
+    sudo -E scripts/run_testbed.py --start-goal 1      # the same loop, from the world's goal 1
+"""
+import argparse
+import datetime
+import json
+import os
+import signal
+import subprocess
+import sys
+
+import yaml
+
+from anyscale_testbed.testbed_record import colour_violations
+from anyscale_testbed.testbed_session import (LoopbackBed, NamespaceBed, TestbedSession,
+                                              layout_with_cpu)
+from anyscale_testbed.two_scale_testbed import TwoScaleError, missing_capabilities
+from anyscale_nav_demo.goal_sequence import loop_from_goal
+
+PREFIX = "[testbed] "
+# The end table marks a silence longer than its tolerance with the word VIOLATION; on a
+# terminal its line is red as well (the log file keeps the plain word). NO_COLOR turns it off.
+COLOUR = sys.stdout.isatty() and "NO_COLOR" not in os.environ
+
+
+def nav_demo_path(*parts) -> str:
+    out = subprocess.run(["rospack", "find", "anyscale_nav_demo"], capture_output=True,
+                         text=True)
+    if out.returncode != 0:
+        sys.exit("run_testbed: anyscale_nav_demo not found; source devel/setup.bash first")
+    return os.path.join(out.stdout.strip(), *parts)
+
+
+def world_start(world: str, start_goal=None):
+    """(x, y, yaw) where the robot starts, and navigation's goals: the world's start and None
+    (navigation reads the world's goals itself), or with `start_goal` K, goal K's pose and the
+    loop from there."""
+    path = nav_demo_path("maps", f"{world}_world.yaml")
+    try:
+        with open(path) as f:
+            world_file = yaml.safe_load(f)
+        if start_goal is None:
+            return [float(v) for v in world_file["start"]], None
+        goals = [[float(v) for v in g] for g in world_file["goals"]]
+    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as e:
+        sys.exit(f"run_testbed: --world {world}: cannot read the start pose and goals from "
+                 f"{path}: {e}")
+    try:
+        start, loop = loop_from_goal(goals, start_goal)
+    except ValueError as e:
+        sys.exit(f"run_testbed: --start-goal: {world}'s {e}")
+    return list(start), [list(g) for g in loop]
+
+
+def calibrated_cores(path: str):
+    """(robot, laptop) CPU quota in cores from the calibration file."""
+    try:
+        with open(path) as f:
+            calibration = yaml.safe_load(f) or {}
+        return float(calibration["robot_cpu_cores"]), float(calibration["laptop_cpu_cores"])
+    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as e:
+        sys.exit(f"run_testbed: {path}: robot_cpu_cores / laptop_cpu_cores: {e}")
+
+
+def parse_args(argv, default_out: str):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--world", default="office_floor", help="office_floor (default), small_loop")
+    p.add_argument("--link", choices=("coverage", "schedule", "unshaped"), default="coverage",
+                   help="coverage: bandwidth from the robot's position (default); schedule: "
+                        "--schedule over time; unshaped: no shaping at all")
+    p.add_argument("--schedule", default="[[0, 27]]",
+                   help="[[t_s, Mbit/s], ...] for --link schedule; 0 Mbit/s = link down")
+    p.add_argument("--start-goal", type=int, default=None, metavar="K",
+                   help="start at goal K of the world's goal list (0 = the first) and do the "
+                        "loop from there, round to goal K (default: the world's start)")
+    p.add_argument("--duration", type=float, default=0.0,
+                   help="end after this many seconds (default: when the loop is done)")
+    p.add_argument("--robot-cpu", type=float, default=None, metavar="CORES",
+                   help="robot CPU quota (default: the calibration file's)")
+    p.add_argument("--laptop-cpu", type=float, default=None, metavar="CORES",
+                   help="laptop CPU quota (default: the calibration file's)")
+    p.add_argument("--allocator", default="paper", help="paper (default), paper_local, optimal")
+    p.add_argument("--hysteresis", type=float, default=10.0, help="the paper's T in s (10)")
+    p.add_argument("--model", default=None, help="system model (default: the nav demo's)")
+    p.add_argument("--cold-start", action="store_true",
+                   help="agents keep no warm standbys: every start imports anew (to compare)")
+    p.add_argument("--rviz", action="store_true", help="also start rviz (needs a display)")
+    p.add_argument("--loopback", action="store_true",
+                   help="both scales on loopback, unshaped, even where namespaces work")
+    p.add_argument("--out", default=default_out,
+                   help="results directory (a subdirectory per run)")
+    args = p.parse_args(argv)
+    try:
+        schedule = yaml.safe_load(args.schedule)
+        assert isinstance(schedule, list) and all(
+            isinstance(s, list) and len(s) == 2 for s in schedule)
+    except (yaml.YAMLError, AssertionError):
+        p.error(f"--schedule: expected [[t_s, Mbit/s], ...], got {args.schedule!r}")
+    return args
+
+
+def main(default_out: str, argv=None) -> int:
+    """One run; `default_out` is where --out defaults to (the caller's results/testbed)."""
+    args = parse_args(argv, default_out)
+    model = args.model or nav_demo_path("config", "testbed.yaml")
+    robot_cpu, laptop_cpu = args.robot_cpu, args.laptop_cpu
+    if robot_cpu is None or laptop_cpu is None:
+        calibrated = calibrated_cores(nav_demo_path("config", "testbed_calibration.yaml"))
+        robot_cpu = calibrated[0] if robot_cpu is None else robot_cpu
+        laptop_cpu = calibrated[1] if laptop_cpu is None else laptop_cpu
+    (x, y, yaw), goals = world_start(args.world, args.start_goal)
+
+    missing = [] if args.loopback else missing_capabilities()
+    loopback = args.loopback or bool(missing)
+    link = "unshaped" if loopback else args.link
+    if missing:
+        print(PREFIX + "this machine lacks " + "; ".join(missing) + ".")
+    if loopback:
+        print(PREFIX + "running both scales on loopback: the link is NOT shaped and the CPUs "
+              "are NOT limited, so this is not emulated WiFi. Migrations still happen for real.")
+
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    start = "" if args.start_goal is None else f"-goal{args.start_goal}"
+    run_dir = os.path.abspath(os.path.join(args.out, f"{args.world}{start}-{link}-{stamp}"))
+    record = os.path.join(run_dir, "record.json")
+    bed = LoopbackBed() if loopback else NamespaceBed(layout_with_cpu(robot_cpu, laptop_cpu))
+    print(PREFIX + f"world {args.world}, link {link}"
+          + ("" if loopback else f", CPU quota robot {robot_cpu:g} / laptop {laptop_cpu:g} cores")
+          + f"; logs and results in {run_dir}")
+
+    # Ctrl-C and a plain kill both end in the teardown below.
+    signal.signal(signal.SIGTERM, raise_interrupt)
+    try:
+        with bed:
+            session = TestbedSession(bed, run_dir)
+            world = session.roslaunch(
+                "robot", "world", [
+                    "anyscale_testbed", "testbed_world.launch", f"world:={args.world}",
+                    f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}", f"link:={link}",
+                    f"schedule:={json.dumps(yaml.safe_load(args.schedule))}",
+                    f"record_path:={record}", f"results_dir:={os.path.join(run_dir, 'nav')}",
+                    f"duration_s:={args.duration}", f"rviz:={str(args.rviz).lower()}"],
+                cpu_quota=False, wait_for_master=False, echo=echo_monitor_lines)
+            session.roslaunch("robot", "robot", [
+                "anyscale_nav_demo", "anyscale_robot.launch", f"world:={args.world}",
+                f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}",
+                f"allocator:={args.allocator}", f"hysteresis_s:={args.hysteresis}",
+                f"uplink_interface:={bed.uplink_interface('robot')}",
+                f"warm_start:={str(not args.cold_start).lower()}"]
+                + ([f"goals:={json.dumps(goals)}"] if goals else []))
+            session.roslaunch("laptop", "laptop", [
+                "anyscale_nav_demo", "laptop.launch", f"model:={model}",
+                f"warm_start:={str(not args.cold_start).lower()}"])
+            code = world.wait()
+            print(PREFIX + f"run ended (world launch exit {code}); stopping both scales")
+            return 0 if code == 0 else 1
+    except KeyboardInterrupt:
+        print(PREFIX + "interrupted: stopping both scales and removing the test bed")
+        return 130
+    except TwoScaleError as e:
+        print(f"run_testbed: {e}", file=sys.stderr)
+        return 1
+    finally:
+        if os.path.exists(record):
+            print(PREFIX + f"record: {record}")
+
+
+def raise_interrupt(*_):
+    raise KeyboardInterrupt
+
+
+def echo_monitor_lines(line: str):
+    if line.startswith(PREFIX) or "[ERROR]" in line or "[FATAL]" in line:
+        print(colour_violations(line, COLOUR), flush=True)
+

@@ -1,0 +1,235 @@
+"""The test bed's monitor node (evaluation only, not part of a deployment): records what a run
+did into a TestbedRecord (JSON) and prints mapping changes as they happen and a table at the
+end. It runs on the robot, so its receive times are what the robot's subscribers saw.
+
+It also samples /proc for the processes of the model's nodes (the agents name them with
+`__name:=`) and their network namespace: on the one-machine test bed every scale's processes
+share one PID namespace, so two live instances of a node are visible even when the link
+between their scales is down and the master only knows one of them. A warm standby (anyscale_agent_cpp's
+python_standby; comm "python_standby", then "standby:...") has the node's command line but has
+not contacted the master: it is no instance until the agent starts it."""
+import math
+import os
+import sys
+import threading
+import time
+from typing import Dict, List
+
+import rosgraph
+import rospy
+from anyscale_msgs.msg import Mapping as MappingMsg
+from anyscale_msgs.msg import MigrationEvent
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from nav_msgs.msg import Odometry
+from std_msgs.msg import Float32, String
+
+from anyscale_core.model import ModelError, load_model
+from anyscale_core.ros_convert import EVENT_NAMES
+
+from .testbed_record import (EventRecord, ProcessSample, TestbedRecord, colour_violations,
+                             format_summary, tolerance_violations)
+
+
+# python_standby's comm from its exec until it renames itself, and while it waits.
+STANDBY_EXEC_COMM = b"python_standby"
+STANDBY_COMM_PREFIX = b"standby:"
+
+
+def say(line: str):
+    """One line on stdout with the prefix the test-bed script echoes to the console."""
+    print(f"[testbed] {line}", flush=True)
+
+
+def node_processes(instances: Dict[str, str], master_uri: str) -> Dict[str, List[str]]:
+    """node name -> network namespace (the /proc/PID/ns/net link) of each live process of
+    this ROS system (its ROS_MASTER_URI is ours: other systems on the machine do not count).
+    `instances`: each name a node's instance may run under (e.g. amcl, amcl__laptop) -> node."""
+    wanted = {f"__name:={i}".encode(): n for i, n in instances.items()}
+    ours = f"ROS_MASTER_URI={master_uri}".encode()
+    found: Dict[str, List[str]] = {n: [] for n in set(instances.values())}
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                args = f.read().split(b"\0")
+            if not any(a in wanted for a in args):
+                continue
+            with open(f"/proc/{pid}/environ", "rb") as f:
+                if ours not in f.read().split(b"\0"):
+                    continue
+            with open(f"/proc/{pid}/stat", "rb") as f:
+                stat = f.read()
+            comm, state = stat.split(b"(", 1)[1].rsplit(b")", 1)
+            if state.split()[0] == b"Z" or comm == STANDBY_EXEC_COMM or \
+                    comm.startswith(STANDBY_COMM_PREFIX):
+                continue            # a zombie or a standby publishes nothing
+            for a in args:
+                if a in wanted:
+                    found[wanted[a]].append(os.readlink(f"/proc/{pid}/ns/net"))
+        except OSError:
+            continue                    # ended while we looked
+    return found
+
+
+class TestbedMonitor:
+    def __init__(self):
+        model_path = rospy.get_param("~model")
+        self.model = load_model(model_path)
+        self.record_path = rospy.get_param("~record_path")
+        self.duration_s = float(rospy.get_param("~duration_s", 0.0))
+        self.exit_when_done = bool(rospy.get_param("~exit_when_done", True))
+        self.rec = TestbedRecord(started_wall=time.time(), world=rospy.get_param("~world", ""),
+                                 link=rospy.get_param("~link", ""))
+        self.lock = threading.Lock()
+        self.link_up = True
+        self.done = threading.Event()
+        # Output topics of the nodes that may move, and the tolerances of their connections.
+        critical = {n for c in self.model.connections if c.tolerance == 0
+                    for n in (c.publisher, c.subscriber)}
+        movable = {n.name for n in self.model.nodes
+                   if n.pinned is None and n.name not in critical}
+        self.outputs: Dict[str, str] = {}
+        self.tolerances: Dict[str, float] = {}
+        for c in self.model.connections:
+            if c.publisher in movable and c.tolerance > 0:
+                self.outputs.setdefault(c.publisher, c.topic)
+                self.tolerances[c.topic] = max(self.tolerances.get(c.topic, 0.0), c.tolerance)
+        # In the record too: its violations can be read, and recomputed, without the model.
+        self.rec.outputs, self.rec.tolerances = dict(self.outputs), dict(self.tolerances)
+        self.node_names = [n.name for n in self.model.nodes]
+        self.master = rosgraph.Master(rospy.get_name())
+        self.pose_topic = rospy.get_param("~pose_topic", "/amcl_pose")
+        for topic in sorted(set(self.outputs.values()) | {self.pose_topic} - {""}):
+            self.rec.receipts[topic] = []
+            rospy.Subscriber(topic, rospy.AnyMsg, self._on_output, callback_args=topic,
+                             queue_size=50)
+        rospy.Subscriber("/anyscale/mapping", MappingMsg, self._on_mapping, queue_size=5)
+        rospy.Subscriber("/anyscale/events", MigrationEvent, self._on_event, queue_size=50)
+        rospy.Subscriber("/anyscale/wifi/bandwidth_mbps", Float32, self._on_bandwidth,
+                         queue_size=10)
+        rospy.Subscriber(rospy.get_param("~ground_truth_topic", "/sim/ground_truth"), Odometry,
+                         self._on_truth, queue_size=20)
+        rospy.Subscriber(rospy.get_param("~status_topic", "/navigation/status"), String,
+                         self._on_status, queue_size=5)
+        say(f"recording to {self.record_path}")
+
+    def now(self) -> float:
+        return time.time() - self.rec.started_wall
+
+    # --- callbacks ------------------------------------------------------------------------------
+    def _on_output(self, msg, topic):
+        now = self.now()
+        with self.lock:
+            self.rec.receipts[topic].append(now)
+        if topic == self.pose_topic:
+            # One rospy subscription per topic and process: the pose comes out of the raw one.
+            # At its stamp, not its arrival: after a partition heals, TCP may still deliver a
+            # pose the old instance sent before the link went down.
+            pose = PoseWithCovarianceStamped().deserialize(msg._buff)
+            p, stamp = pose.pose.pose.position, pose.header.stamp.to_sec()
+            with self.lock:
+                self.rec.estimate.append((stamp - self.rec.started_wall, p.x, p.y))
+
+    def _on_mapping(self, msg):
+        mapping = {a.node: a.scale for a in msg.assignments}
+        with self.lock:
+            before = self.rec.mappings[-1][1] if self.rec.mappings else None
+            self.rec.mappings.append((self.now(), mapping, msg.perf, msg.objective))
+        off = sorted(n for n, s in mapping.items() if s != self.model.master.name)
+        if before != mapping:
+            say(f"t={self.now():6.1f} s  mapping: " +
+                ("all on " + self.model.master.name if not off else
+                 ", ".join(f"{n}@{mapping[n]}" for n in off)) + f"  (Perf {msg.perf:.0f})")
+
+    def _on_event(self, msg):
+        e = EventRecord(self.now(), EVENT_NAMES.get(msg.kind, str(msg.kind)), msg.node,
+                        msg.from_scale, msg.to_scale, msg.reason, float(msg.duration_s),
+                        msg.success, msg.header.stamp.to_sec() - self.rec.started_wall)
+        with self.lock:
+            self.rec.events.append(e)
+        if e.kind != "start":
+            took = f", running after {e.duration_s:.2f} s" if math.isfinite(e.duration_s) else ""
+            say(f"t={e.decided_t:6.1f} s  {e.kind} {e.node} {e.from_scale or '-'} -> "
+                f"{e.to_scale}: {e.reason}{took}")
+
+    def _on_bandwidth(self, msg):
+        up = msg.data > 0
+        with self.lock:
+            self.rec.bandwidth.append((self.now(), float(msg.data)))
+            changed, self.link_up = up != self.link_up, up
+        if changed:
+            say(f"t={self.now():6.1f} s  WiFi " + (f"back: {msg.data:.1f} Mbit/s" if up
+                                                   else "lost (no coverage)"))
+
+    def _on_truth(self, msg):
+        p, t = msg.pose.pose.position, msg.header.stamp.to_sec() - self.rec.started_wall
+        with self.lock:
+            if not self.rec.truth or t - self.rec.truth[-1][0] >= 0.1:
+                self.rec.truth.append((t, p.x, p.y))
+
+    def _on_status(self, msg):
+        with self.lock:
+            self.rec.navigation_status.append((self.now(), msg.data))
+        if msg.data.startswith("done") and self.exit_when_done and not self.done.is_set():
+            say(f"t={self.now():6.1f} s  navigation: {msg.data}")     # once: the run ends here
+            self.done.set()
+
+    # --- sampling -------------------------------------------------------------------------------
+    def _sample(self):
+        instances = node_processes(
+            {self.model.instance_name(n, s).lstrip("/"): n
+             for n in self.node_names for s in self.model.scale_names},
+            rosgraph.get_master_uri())
+        try:
+            publishers = {t: sorted(nodes) for t, nodes in self.master.getSystemState()[0]
+                          if t in self.rec.receipts}
+        except Exception:  # noqa: BLE001 - the master is ours; a failed poll is skipped
+            publishers = None
+        with self.lock:
+            self.rec.processes.append(ProcessSample(self.now(), self.link_up, instances))
+            if publishers is not None:
+                self.rec.master_publishers.append((self.now(), publishers))
+
+    def run(self):
+        rate = rospy.Rate(float(rospy.get_param("~sample_rate_hz", 5.0)))
+        last_save = time.monotonic()
+        while not rospy.is_shutdown() and not self.done.is_set():
+            if self.duration_s > 0 and self.now() >= self.duration_s:
+                break
+            self._sample()
+            if time.monotonic() - last_save > 5.0:
+                self.save()     # a killed run still leaves its record
+                last_save = time.monotonic()
+            try:
+                rate.sleep()
+            except rospy.ROSInterruptException:
+                break
+        self.rec.finished_t = self.now()
+        self.save()
+        terminal = sys.stdout.isatty()     # on the test bed a pipe: run_testbed.py colours
+        for line in format_summary(self.rec, self.outputs, self.tolerances).splitlines():
+            say(colour_violations(line, terminal))
+
+    def save(self):
+        with self.lock:
+            self.rec.violations = tolerance_violations(self.rec)
+            tmp = self.record_path + ".tmp"
+            self.rec.save(tmp)
+        os.replace(tmp, self.record_path)
+
+
+def main(argv=None) -> int:
+    rospy.init_node("testbed_monitor", argv=argv, disable_signals=False)
+    try:
+        monitor = TestbedMonitor()
+    except KeyError as e:
+        rospy.logfatal("testbed monitor: parameter %s is required", e)
+        return 1
+    except ModelError as e:
+        rospy.logfatal("testbed monitor: %s", e)
+        return 1
+    monitor.run()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,186 @@
+"""The stale-registration race, provoked on purpose on the two-scale test bed (issue: a dead
+laptop instance's request, delivered by TCP once the link was back, took the node's name from
+the live robot instance and silenced it for 11.6 s).
+
+The stock relay runs on the laptop. The test freezes it (SIGSTOP), cuts the link so that the
+relay comes home, restores the link within the lease (so the frozen instance is still alive),
+lets it run again (SIGCONT) and replays what such an instance sends late: a registration with
+its own name and API. The robot's relay must publish within the connection's tolerance of the
+link loss, keep publishing, and the laptop instance must end (its lease) and leave no
+registration behind."""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from anyscale_testbed.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
+from anyscale_testbed.two_scale_testbed import namespace_exec
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+RELAY_TOLERANCE_S = 2.0        # relay_model.yaml
+LEASE_S = 3.0                  # the decision node's default
+CUT_S = 2.0                    # shorter than the lease: the frozen instance survives the cut
+AFTER_S = 12.0                 # how long the output is watched after the link returns
+
+PROBE = """
+import sys, time, rospy
+from std_msgs.msg import String
+rospy.init_node("relay_probe", anonymous=True)
+out = open(sys.argv[1], "a", buffering=1)
+rospy.Subscriber("/chatter_relay", String,
+                 lambda m: out.write("%.3f %s\\n" % (time.time(), m._connection_header["callerid"])))
+rospy.spin()
+"""
+
+# What a frozen instance sends once it runs again and the link is back: a registration under
+# its own name from its own API (rospy registers, and subscribes parameters, this way).
+REPLAY = """
+import sys, rosgraph
+name, api = sys.argv[1], sys.argv[2]
+rosgraph.Master(name).registerPublisher("/chatter_relay", "std_msgs/String", api)
+"""
+
+LOOKUP = "import sys, rosgraph; print(rosgraph.Master('/stale_test').lookupNode(sys.argv[1]))"
+
+
+def model_path():
+    pkg = subprocess.run(["rospack", "find", "anyscale_core"], capture_output=True, text=True)
+    return os.path.join(pkg.stdout.strip(), "test", "config", "relay_model.yaml")
+
+
+def relay_processes():
+    """pid -> the node name it was started under, for every live relay on this machine."""
+    found = {}
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                args = f.read().decode(errors="replace").split("\0")
+            with open(f"/proc/{pid}/stat") as f:
+                if f.read().rsplit(")", 1)[1].split()[0] == "Z":
+                    continue
+        except OSError:
+            continue
+        for a in args:
+            if a == "__name:=relay" or a.startswith("__name:=relay__"):
+                found[int(pid)] = a.split(":=", 1)[1]
+    return found
+
+
+def relay_in(namespace):
+    """(pid, name) of the relay running in a network namespace (its /proc ns link), or None."""
+    for pid, name in relay_processes().items():
+        try:
+            if os.readlink(f"/proc/{pid}/ns/net") == namespace:
+                return pid, name
+        except OSError:
+            continue
+    return None
+
+
+def namespace_of(bed, scale):
+    """The /proc/PID/ns/net link of a scale's processes: the inode `ip netns` keeps."""
+    return f"net:[{os.stat('/var/run/netns/' + bed.end(scale).namespace).st_ino}]"
+
+
+def in_scale(bed, session, scale, argv):
+    """argv run to its end inside a scale's network namespace, with that scale's ROS env."""
+    return subprocess.run(namespace_exec(bed.end(scale), argv), env=session.env(scale),
+                          capture_output=True, text=True, timeout=20)
+
+
+def wait_for(predicate, timeout_s, period_s=0.1):
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(period_s)
+    return predicate()
+
+
+def receipts(path):
+    """[(wall time, callerid)] of every /chatter_relay message the robot's probe received."""
+    try:
+        with open(path) as f:
+            return [(float(t), who) for t, who in (line.split() for line in f if line.strip())]
+    except FileNotFoundError:
+        return []
+
+
+@pytest.fixture(scope="module")
+def race(tmp_path_factory):
+    run_dir = str(tmp_path_factory.mktemp("stale"))
+    model = model_path()
+    got = os.path.join(run_dir, "relay_receipts.txt")
+    with NamespaceBed(layout_with_cpu(0.0, 0.0)) as bed:
+        session = TestbedSession(bed, run_dir)
+        session.roslaunch("robot", "robot", [
+            os.path.join(HERE, "relay_robot.launch"), f"model:={model}", "schedule:=[[0, 27]]",
+            f"record_path:={os.path.join(run_dir, 'record.json')}", "duration_s:=120",
+            "hysteresis_s:=30", f"uplink_interface:={bed.uplink_interface('robot')}"],
+            wait_for_master=False)
+        session.roslaunch("laptop", "laptop", [
+            "anyscale_agent_cpp", "agent.launch", "scale:=laptop", "master_scale:=robot",
+            f"model:={model}", "sample_rate_hz:=5.0", "sigint_timeout_s:=2.0"])
+        bed.start("robot", [sys.executable, "-c", PROBE, got], session.env("robot"),
+                  os.path.join(run_dir, "logs", "probe.log"), cpu_quota=False)
+        laptop = namespace_of(bed, "laptop")
+        # The relay moves out, and the robot's instance is stopped once the laptop's published.
+        moved = wait_for(lambda: relay_in(laptop) and len(relay_processes()) == 1, 60.0)
+        assert moved, f"the relay never ran on the laptop alone: {relay_processes()}"
+        pid, name = relay_in(laptop)
+        api = in_scale(bed, session, "robot", [sys.executable, "-c", LOOKUP, "/" + name]).stdout.strip()
+        assert api.startswith("http://"), api
+        os.kill(pid, signal.SIGSTOP)
+        down = time.time()
+        bed.set_link(False)
+        time.sleep(CUT_S)
+        bed.set_link(True)
+        robot = namespace_of(bed, "robot")
+        home = wait_for(lambda: relay_in(robot), 5.0)
+        os.kill(pid, signal.SIGCONT)
+        up = time.time()
+        replay = in_scale(bed, session, "laptop", [sys.executable, "-c", REPLAY, "/" + name, api])
+        time.sleep(AFTER_S)
+        laptop_left = relay_in(laptop)
+        home_after = relay_in(robot)
+        publishers = in_scale(bed, session, "robot", ["rostopic", "info", "/chatter_relay"]).stdout
+    return {"down": down, "up": up, "name": name, "replay": replay, "receipts": receipts(got),
+            "laptop_left": laptop_left, "publishers": publishers, "home": home,
+            "home_after": home_after}
+
+
+def test_the_laptop_instance_ran_under_its_own_name(race):
+    assert race["name"] == "relay__laptop"
+
+
+def test_the_replayed_late_registration_reached_the_master(race):
+    assert race["replay"].returncode == 0, race["replay"].stderr
+
+
+def test_the_robots_relay_publishes_within_the_tolerance_of_the_link_loss(race):
+    robot = [t for t, who in race["receipts"] if who == "/relay" and t > race["down"]]
+    assert robot, "the robot's relay never published after the link loss"
+    assert robot[0] - race["down"] <= RELAY_TOLERANCE_S, robot[0] - race["down"]
+
+
+def test_the_late_registration_does_not_end_the_robots_relay(race):
+    assert race["home"], "no relay on the robot after the link loss"
+    assert race["home_after"] == race["home"], (race["home"], race["home_after"])
+
+
+def test_and_keeps_publishing_after_the_late_registration(race):
+    times = [t for t, _ in race["receipts"] if t > race["down"]]
+    points = [race["down"]] + times
+    gaps = [b - a for a, b in zip(points, points[1:])]
+    assert max(gaps) <= RELAY_TOLERANCE_S, max(gaps)
+    assert times[-1] > race["up"] + AFTER_S - 1.0, "/chatter_relay went silent"
+
+
+def test_the_frozen_instance_ends_and_leaves_no_registration(race):
+    assert race["laptop_left"] is None, f"still running on the laptop: {race['laptop_left']}"
+    publishers = race["publishers"].split("Subscribers:")[0]
+    assert "/relay__laptop" not in publishers and "/relay " in publishers + " ", publishers

@@ -1,0 +1,63 @@
+"""The test-bed monitor's /proc census: a node's live processes of this ROS system only, and a
+warm standby is no instance until it is started."""
+import os
+import subprocess
+import sys
+import time
+
+from anyscale_testbed.testbed_monitor_ros import node_processes
+
+STANDBY = os.path.join(os.path.dirname(__file__), "..", "..", "anyscale_agent_cpp", "scripts",
+                       "python_standby")
+MASTER = "http://census-test-%d:11311" % os.getpid()
+# census_node on the master scale, census_node__laptop on a remote one: one node.
+NODE = {"census_node": "census_node", "census_node__laptop": "census_node"}
+
+
+def wait_for(predicate, timeout_s=10.0):
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(0.02)
+    return predicate()
+
+
+def spawn(args, master=MASTER, **kw):
+    return subprocess.Popen(args, env=dict(os.environ, ROS_MASTER_URI=master),
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, **kw)
+
+
+def test_counts_processes_of_this_master_by_their_node_name(tmp_path):
+    sleeper = [sys.executable, "-c", "import time; time.sleep(30)"]
+    ours = spawn(sleeper + ["__name:=census_node"])
+    remote = spawn(sleeper + ["__name:=census_node__laptop"])
+    other_system = spawn(sleeper + ["__name:=census_node"], master="http://elsewhere:11311")
+    try:
+        assert wait_for(lambda: len(node_processes(NODE, MASTER)["census_node"]) == 2)
+        assert node_processes(NODE, MASTER)["census_node"] == \
+            [os.readlink(f"/proc/{p.pid}/ns/net") for p in (ours, remote)]
+        assert node_processes({"other": "other"}, MASTER) == {"other": []}
+    finally:
+        for p in (ours, remote, other_system):
+            p.kill()
+            p.wait()
+    assert node_processes(NODE, MASTER)["census_node"] == []
+
+
+def test_a_warm_standby_counts_once_started(tmp_path):
+    script = tmp_path / "node"
+    script.write_text("#!/usr/bin/python3\nimport time\ntime.sleep(30)\n")
+    # Exec'd like the agent does it (the script itself, not python3 SCRIPT): from the first
+    # instant its comm is the standby's file name.
+    standby = spawn([STANDBY, str(script), "__name:=census_warm"], stdin=subprocess.PIPE)
+    try:
+        assert node_processes({"census_warm": "census_warm"}, MASTER)["census_warm"] == []
+        assert wait_for(lambda: open(f"/proc/{standby.pid}/comm").read().startswith("standby:"))
+        assert node_processes({"census_warm": "census_warm"}, MASTER)["census_warm"] == []
+        standby.stdin.write(b"start\n")
+        standby.stdin.close()
+        assert wait_for(lambda: len(node_processes({"census_warm": "census_warm"}, MASTER)["census_warm"]) == 1)
+    finally:
+        standby.kill()
+        standby.wait()

@@ -1,0 +1,86 @@
+"""The tolerance bench's rows, table, CSV and Markdown, from synthetic test-bed records."""
+import csv
+import math
+
+from anyscale_testbed.testbed_record import EventRecord, TestbedRecord, tolerance_violations
+from anyscale_testbed.tolerance_report import (format_markdown, format_table, path_time, run_row,
+                                               write_csv)
+
+
+def ticks(start, end, period=0.2):
+    return [round(start + i * period, 3) for i in range(int(round((end - start) / period)) + 1)]
+
+
+def move(decided_t, kind="migrate", node="amcl", reason="laptop can take it"):
+    return EventRecord(t=decided_t + 1.0, kind=kind, node=node, from_scale="robot",
+                       to_scale="laptop", reason=reason, duration_s=1.0, success=True,
+                       decided_t=decided_t)
+
+
+def record(amcl_times, events=(), done_t=300.0):
+    rec = TestbedRecord(
+        events=list(events), finished_t=310.0,
+        receipts={"/amcl_pose": amcl_times, "/ar_markers": ticks(12.0, 310.0, 0.1)},
+        bandwidth=[(0.0, 10.0), (100.0, 0.0), (101.0, 10.0)],
+        navigation_status=[(15.0, "drive 0/5"), (80.0, "drive 1/5")]
+        + ([(done_t, "done 5/5")] if done_t else []),
+        outputs={"amcl": "/amcl_pose", "ar_recognition": "/ar_markers"},
+        tolerances={"/amcl_pose": 2.0, "/ar_markers": 1.0})
+    rec.violations = tolerance_violations(rec)      # as the monitor keeps them
+    return rec
+
+
+def two_runs():
+    clean = record(ticks(10.0, 310.0), [move(50.0), move(100.2, "migrate_back")])
+    broken = record(ticks(10.0, 100.0) + ticks(103.5, 310.0),
+                    [move(100.2, "migrate_back", reason="link to laptop down"),
+                     move(120.0, "restart")], done_t=None)
+    return [run_row(1, 0, 0, clean), run_row(2, 1, 0, broken), run_row(3, 2, 1, None)]
+
+
+def test_a_row_has_the_run_figures_and_the_record_violations():
+    clean, broken, failed = two_runs()
+    assert clean.path_time_s == 285.0 and clean.migrations == 2 and clean.restarts == 0
+    assert clean.longest_s["/amcl_pose"] < 0.3 and clean.violations == []
+    assert math.isnan(broken.path_time_s) and broken.note == "the loop was not completed"
+    assert broken.migrations == 1 and broken.restarts == 1
+    assert broken.longest_s["/amcl_pose"] == 3.5
+    (v,) = broken.violations
+    assert (v.topic, v.start_t, v.end_t, v.tolerance_s) == ("/amcl_pose", 100.0, 103.5, 2.0)
+    assert "link down at t=100.0 s" in v.cause
+    assert failed.note == "no record" and failed.exit_code == 1
+
+
+def test_path_time_is_first_status_to_done():
+    assert path_time(record(ticks(10.0, 20.0), done_t=200.0)) == 185.0
+    assert math.isnan(path_time(TestbedRecord()))
+
+
+def test_the_table_flags_each_violation_with_its_cause_and_ends_with_a_total():
+    text = format_table(two_runs())
+    lines = text.splitlines()
+    assert lines[0].split()[:3] == ["run", "start", "goal"]
+    assert "3.50/2 s !" in lines[2] and "0.20/2 s" in lines[1]
+    assert [line for line in lines if line.startswith("VIOLATION")] == [
+        "VIOLATION run 2: /amcl_pose silent 3.50 s > tolerance 2 s from t=100.0 s: link down at "
+        "t=100.0 s; migrate_back amcl robot -> laptop at t=100.2 s (link to laptop down); link "
+        "back at t=101.0 s"]
+    assert lines[-1] == ("total: 3 runs, 1 violations in 1 runs, 1 loops done (median path "
+                         "time 285 s), 3 migrations, 1 restarts")
+
+
+def test_csv_and_markdown_copies(tmp_path):
+    rows = two_runs()
+    write_csv(str(tmp_path / "t.csv"), rows)
+    with open(tmp_path / "t.csv") as f:
+        read = list(csv.DictReader(f))
+    assert [r["violations"] for r in read] == ["0", "1", "0"]
+    assert read[1]["longest_silence_s /amcl_pose"] == "3.500"
+    assert read[1]["tolerance_s /ar_markers"] == "1.000"
+    assert read[1]["violation_details"].startswith("run 2: /amcl_pose silent 3.50 s")
+    assert read[2]["path_time_s"] == "" and read[2]["note"] == "no record"
+    md = format_markdown(rows, "Tolerance bench")
+    assert md.startswith("# Tolerance bench\n\n| run | start goal |")
+    assert "| 2 | 1 | 0 | - | 1 | 1 | 3.50/2 s ! |" in md
+    assert "- run 2: /amcl_pose silent 3.50 s" in md
+    assert md.rstrip().endswith("1 restarts")

@@ -17,13 +17,11 @@ import subprocess
 import sys
 import time
 
-from anyscale_testbed.two_scale_testbed import (ScaleEnd, TwoScaleLayout, TwoScaleTestbed,
-                                                missing_capabilities, namespace_exec)
+from anyscale_testbed.two_scale_testbed import (TwoScaleTestbed, missing_capabilities,
+                                                namespace_exec, process_layout)
 
 PID = os.getpid()
-LAYOUT = TwoScaleLayout(
-    robot=ScaleEnd("robot", "asbl%d_m" % PID, "abm%d" % PID, "10.213.78.1", 0.0),
-    laptop=ScaleEnd("laptop", "asbl%d_r" % PID, "abr%d" % PID, "10.213.78.2", 0.0))
+LAYOUT = process_layout("asbl", "10.213.78", PID)
 URI = "http://%s:11311" % LAYOUT.robot.address
 MODEL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "src", "anyscale_agent_cpp", "test",
                      "config", "test_model.yaml")

@@ -19,6 +19,7 @@ from anyscale_msgs.srv import ListNodes
 from std_msgs.msg import String
 
 from anyscale_core.agent_client import call_with_timeout, registered_pid
+from anyscale_core.polling import wait_for
 
 ALIVE = (NodeProcess.STARTING, NodeProcess.RUNNING, NodeProcess.STOPPING)
 
@@ -28,16 +29,6 @@ def executable(name):
     from catkin.find_in_workspaces import find_in_workspaces
     return find_in_workspaces(["libexec"], project="anyscale_core", path=name,
                               first_matching_workspace_only=True)[0]
-
-
-def wait_for(predicate, timeout, period=0.1):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(period)
-    return predicate()
 
 
 # A planned move starts the new relay before it stops the old one (make before break): two

@@ -3,7 +3,8 @@ warm standby is no instance until it is started."""
 import os
 import subprocess
 import sys
-import time
+
+from anyscale_core.polling import wait_for
 
 from anyscale_testbed.testbed_monitor_ros import node_processes
 
@@ -12,15 +13,6 @@ STANDBY = os.path.join(os.path.dirname(__file__), "..", "..", "anyscale_agent_cp
 MASTER = "http://census-test-%d:11311" % os.getpid()
 # census_node on the master scale, census_node__laptop on a remote one: one node.
 NODE = {"census_node": "census_node", "census_node__laptop": "census_node"}
-
-
-def wait_for(predicate, timeout_s=10.0):
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return predicate()
 
 
 def spawn(args, master=MASTER, **kw):

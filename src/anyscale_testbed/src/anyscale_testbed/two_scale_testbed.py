@@ -47,6 +47,17 @@ class TwoScaleLayout:
         return (self.robot, self.laptop)
 
 
+def process_layout(tag: str, subnet: str, pid: Optional[int] = None) -> TwoScaleLayout:
+    """A layout no other test bed on the machine uses, for a test or bench that may run beside
+    one: namespaces and interfaces named by `tag` and the process id, addresses .1 (robot) and
+    .2 (laptop) of its own /24 `subnet` (e.g. "10.213.77"). Interface names stay within
+    IFNAMSIZ for a tag of up to 6 characters."""
+    pid = os.getpid() if pid is None else pid
+    return TwoScaleLayout(
+        robot=ScaleEnd("robot", f"{tag}{pid}_m", f"{tag}{pid}m", f"{subnet}.1", 0.0),
+        laptop=ScaleEnd("laptop", f"{tag}{pid}_r", f"{tag}{pid}r", f"{subnet}.2", 0.0))
+
+
 def setup_commands(layout: TwoScaleLayout) -> List[List[str]]:
     r, l = layout.robot, layout.laptop
     cmds = [["ip", "netns", "add", r.namespace], ["ip", "netns", "add", l.namespace],

@@ -9,13 +9,11 @@ import time
 import psutil
 import pytest
 
-from anyscale_testbed.two_scale_testbed import (ScaleEnd, TwoScaleLayout, TwoScaleTestbed,
-                                                missing_capabilities, namespace_exec)
+from anyscale_testbed.two_scale_testbed import (TwoScaleTestbed, missing_capabilities,
+                                                namespace_exec, process_layout)
 
 PID = os.getpid()
-LAYOUT = TwoScaleLayout(
-    robot=ScaleEnd("robot", "asagt%d_m" % PID, "asm%d" % PID, "10.213.77.1", 0.0),
-    laptop=ScaleEnd("laptop", "asagt%d_r" % PID, "asr%d" % PID, "10.213.77.2", 0.0))
+LAYOUT = process_layout("asagt", "10.213.77", PID)
 MASTER_URI = "http://%s:11311" % LAYOUT.robot.address
 HERE = os.path.dirname(os.path.abspath(__file__))
 # the agent package's own test model (this test moved here from anyscale_agent_cpp/test)

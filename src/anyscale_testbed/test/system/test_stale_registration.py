@@ -16,6 +16,8 @@ import time
 
 import pytest
 
+from anyscale_core.polling import wait_for
+
 from anyscale_testbed.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
 from anyscale_testbed.two_scale_testbed import namespace_exec
 
@@ -91,16 +93,6 @@ def in_scale(bed, session, scale, argv):
                           capture_output=True, text=True, timeout=20)
 
 
-def wait_for(predicate, timeout_s, period_s=0.1):
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(period_s)
-    return predicate()
-
-
 def receipts(path):
     """[(wall time, callerid)] of every /chatter_relay message the robot's probe received."""
     try:
@@ -129,7 +121,7 @@ def race(tmp_path_factory):
                   os.path.join(run_dir, "logs", "probe.log"), cpu_quota=False)
         laptop = namespace_of(bed, "laptop")
         # The relay moves out, and the robot's instance is stopped once the laptop's published.
-        moved = wait_for(lambda: relay_in(laptop) and len(relay_processes()) == 1, 60.0)
+        moved = wait_for(lambda: relay_in(laptop) and len(relay_processes()) == 1, 60.0, 0.1)
         assert moved, f"the relay never ran on the laptop alone: {relay_processes()}"
         pid, name = relay_in(laptop)
         api = in_scale(bed, session, "robot", [sys.executable, "-c", LOOKUP, "/" + name]).stdout.strip()
@@ -140,7 +132,7 @@ def race(tmp_path_factory):
         time.sleep(CUT_S)
         bed.set_link(True)
         robot = namespace_of(bed, "robot")
-        home = wait_for(lambda: relay_in(robot), 5.0)
+        home = wait_for(lambda: relay_in(robot), 5.0, 0.1)
         os.kill(pid, signal.SIGCONT)
         up = time.time()
         replay = in_scale(bed, session, "laptop", [sys.executable, "-c", REPLAY, "/" + name, api])

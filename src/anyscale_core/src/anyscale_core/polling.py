@@ -1,0 +1,18 @@
+"""Waiting for a condition with a deadline (pure Python): the tests of every package, the test
+bed and its benches wait this way for processes, registrations and /proc entries to appear."""
+import time
+from typing import Callable, TypeVar
+
+T = TypeVar("T")
+
+
+def wait_for(predicate: Callable[[], T], timeout_s: float = 10.0, period_s: float = 0.05) -> T:
+    """The first truthy value of `predicate()` within timeout_s, polled every period_s; after
+    the deadline, what one last call returns."""
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(period_s)
+    return predicate()

@@ -1,5 +1,5 @@
-"""Waiting for a condition with a deadline (pure Python): the tests of every package, the test
-bed and its benches wait this way for processes, registrations and /proc entries to appear."""
+"""Waiting for a condition with a deadline (pure Python): this package's tests and the test
+bed's tests and benches wait this way for processes, registrations and /proc entries."""
 import time
 from typing import Callable, TypeVar
 

@@ -4,7 +4,7 @@ import pytest
 import yaml
 
 from anyscale_core.characterisation import characterise
-from anyscale_core.model import load_model
+from anyscale_core.model_loader import load_model
 
 from core_test_data import TESTBED
 

@@ -6,7 +6,7 @@ import os
 from hypothesis import strategies as st
 
 from anyscale_core.characterisation import characterise
-from anyscale_core.model import parse_model
+from anyscale_core.model_loader import parse_model
 
 TESTBED = os.path.normpath(os.path.join(os.path.dirname(__file__), "..", "..",
                                         "anyscale_nav_demo", "config", "testbed.yaml"))

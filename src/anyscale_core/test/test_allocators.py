@@ -9,7 +9,7 @@ from anyscale_core.allocators import (ALLOCATORS, AllocationContext, OptimalAllo
 from anyscale_core.characterisation import characterise, enumerate_mappings
 from anyscale_core.constraints import DynamicState, is_feasible
 from anyscale_core.cost import perf
-from anyscale_core.model import parse_model
+from anyscale_core.model_loader import parse_model
 
 from core_test_data import random_systems
 

@@ -2,7 +2,8 @@
 with an error naming the file, the key and what was expected."""
 import pytest
 
-from anyscale_core.model import ModelError, load_model, parse_model
+from anyscale_core.model import ModelError
+from anyscale_core.model_loader import load_model, parse_model
 
 from core_test_data import DELETE, mutated
 

@@ -14,7 +14,8 @@ from .allocators import ALLOCATORS, AllocationContext, make_allocator
 from .characterisation import Characterisation, characterise, count_mappings
 from .constraints import DynamicState, load_state, required_bandwidth, violations
 from .cost import perf
-from .model import ModelError, load_model
+from .model import ModelError
+from .model_loader import load_model
 
 EXIT_USAGE = 2
 

@@ -8,7 +8,8 @@ from typing import Any, Dict, List, Mapping, Optional
 import numpy as np
 
 from .characterisation import Characterisation
-from .model import ModelError, SystemModel, read_yaml
+from .model import ModelError, SystemModel
+from .model_loader import read_yaml
 
 # A scale is full at 100 % of its CPU (the unit of cpu_usage and scale_load).
 CPU_CAPACITY_PERCENT = 100.0

@@ -21,7 +21,8 @@ from .allocators import make_allocator
 from .characterisation import characterise
 from .cost import perf
 from .decision_engine import DecisionEngine, DecisionParams, RenewLeases, StartNode
-from .model import ModelError, load_model
+from .model import ModelError
+from .model_loader import load_model
 from .restart_backoff import BackoffParams
 
 

@@ -113,7 +113,7 @@ def run(model_path: Optional[str], once: bool, period_s: float = 1.0, wait_s: fl
     from anyscale_msgs.msg import Mapping as MappingMsg
     from anyscale_msgs.msg import MigrationEvent, ScaleStatus
 
-    from .model import load_model
+    from .model_loader import load_model
 
     if not rosgraph.is_master_online():
         print("anyscale top: error: no ROS master at "

@@ -8,7 +8,8 @@ from typing import Dict, List, Tuple
 
 import numpy as np
 
-from anyscale_core.model import SystemModel, parse_model
+from anyscale_core.model import SystemModel
+from anyscale_core.model_loader import parse_model
 
 NOMINAL_MBPS = 54.0                # 802.11g
 

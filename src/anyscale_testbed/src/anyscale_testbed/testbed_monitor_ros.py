@@ -23,7 +23,8 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Float32, String
 
-from anyscale_core.model import ModelError, load_model
+from anyscale_core.model import ModelError
+from anyscale_core.model_loader import load_model
 from anyscale_core.ros_convert import EVENT_NAMES
 
 from .testbed_record import (EventRecord, ProcessSample, TestbedRecord, colour_violations,

@@ -41,6 +41,7 @@ import rosgraph  # noqa: E402  (after ROS_MASTER_URI is set)
 import rospy  # noqa: E402
 import rostopic  # noqa: E402
 from anyscale_msgs.msg import ScaleStatus  # noqa: E402
+from anyscale_testbed.bench_runs import interrupt_then_kill  # noqa: E402
 from anyscale_msgs.srv import SetWatchedTopics, StartNode, StopNode  # noqa: E402
 from catkin.find_in_workspaces import find_in_workspaces  # noqa: E402
 
@@ -92,12 +93,7 @@ class Bench:
     def close(self):
         for p in reversed(self.procs):
             if p.poll() is None:
-                p.send_signal(2)
-                try:
-                    p.wait(timeout=20)
-                except subprocess.TimeoutExpired:
-                    p.kill()
-                    p.wait()
+                interrupt_then_kill(p, 20)
         shutil.rmtree(self.tmp, ignore_errors=True)
 
     def start_agent(self):

@@ -15,16 +15,14 @@ sourced:
 """
 import argparse
 import datetime
-import glob
 import os
-import signal
 import subprocess
 import sys
 import time
 
 import yaml
 
-from anyscale_testbed.testbed_record import TestbedRecord
+from anyscale_testbed.bench_runs import latest_record, run_logged
 from anyscale_testbed.tolerance_report import (format_markdown, format_table, row_cells, run_row,
                                                topics_of, write_csv)
 from anyscale_testbed.two_scale_testbed import missing_capabilities
@@ -68,42 +66,9 @@ def goal_count(world: str) -> int:
 def run_once(args, start_goal: int, out_dir: str) -> int:
     """One run of the main job's scenario; its console output goes to out_dir/console.log.
     Returns run_testbed.py's exit code."""
-    argv = [sys.executable, RUN_TESTBED, "--world", args.world, "--link", "coverage",
-            "--allocator", args.allocator, "--start-goal", str(start_goal),
-            "--duration", str(args.duration), "--out", out_dir]
-    os.makedirs(out_dir, exist_ok=True)
-    with open(os.path.join(out_dir, "console.log"), "wb") as log:
-        # A session of its own: Ctrl-C reaches the bench only, which passes on exactly one
-        # SIGINT, so the run tears its test bed down (killing it would leave the bed behind).
-        proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
-                                start_new_session=True)
-        try:
-            return proc.wait()
-        except KeyboardInterrupt:
-            proc.send_signal(signal.SIGINT)
-            wait_through_interrupts(proc)
-            raise
-
-
-def wait_through_interrupts(proc: subprocess.Popen):
-    """Waits for the run to end its teardown (bounded), whatever Ctrl-C comes meanwhile."""
-    while True:
-        try:
-            proc.wait()
-            return
-        except KeyboardInterrupt:
-            print("bench: still removing the test bed of the run ...", flush=True)
-
-
-def load_record(out_dir: str):
-    found = sorted(glob.glob(os.path.join(out_dir, "*", "record.json")))
-    if not found:
-        return None
-    try:
-        return TestbedRecord.load(found[-1])
-    except (OSError, ValueError, TypeError, KeyError) as e:
-        print(f"bench: {found[-1]}: unreadable record ({e})", flush=True)
-        return None
+    return run_logged([sys.executable, RUN_TESTBED, "--world", args.world, "--link", "coverage",
+                       "--allocator", args.allocator, "--start-goal", str(start_goal),
+                       "--duration", str(args.duration), "--out", out_dir], out_dir)
 
 
 def main(argv=None) -> int:
@@ -126,7 +91,7 @@ def main(argv=None) -> int:
                   flush=True)
             began = time.monotonic()
             code = run_once(args, start_goal, run_dir)
-            rows.append(run_row(k + 1, start_goal, code, load_record(run_dir)))
+            rows.append(run_row(k + 1, start_goal, code, latest_record(run_dir)))
             cells = row_cells(rows[-1], topics_of(rows))
             print(f"[{k + 1}/{args.runs}] done in {time.monotonic() - began:.0f} s: exit "
                   f"{code}, path time {cells[3]}, {rows[-1].migrations} migrations, "

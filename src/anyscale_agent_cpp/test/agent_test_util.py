@@ -23,13 +23,12 @@ def registered_pid(node):
 
 
 def wait_for(predicate, timeout, period=0.05):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        value = predicate()
-        if value:
-            return value
+    """The first truthy value of predicate() within timeout s, else the last one. (The agent's
+    tests cannot use anyscale_core.polling: anyscale_core test-depends on this package.)"""
+    deadline = time.monotonic() + timeout
+    while not (value := predicate()) and time.monotonic() < deadline:
         time.sleep(period)
-    return predicate()
+    return value
 
 
 class Agent:

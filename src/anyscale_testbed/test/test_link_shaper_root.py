@@ -13,6 +13,7 @@ import time
 
 import pytest
 
+from anyscale_testbed.bench_runs import interrupt_then_kill
 from anyscale_testbed.link_shaper import (LinkSetting, SettingTracker, apply_setting,
                                           link_setting_for)
 from anyscale_testbed.two_scale_testbed import (ScaleEnd, TwoScaleError, TwoScaleLayout,
@@ -114,15 +115,6 @@ def start_node(env, tmp_path, *params):
                             stdout=open(tmp_path / "node.log", "wb"), stderr=subprocess.STDOUT)
 
 
-def stop(proc):
-    proc.send_signal(2)
-    try:
-        proc.wait(timeout=10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait()
-
-
 def test_node_follows_its_schedule_on_the_real_link(roscore, tmp_path):
     with TwoScaleTestbed(LAYOUT, cgroup_prefix="asls"):
         node = start_node(roscore, tmp_path, "mode:=schedule",
@@ -142,7 +134,7 @@ def test_node_follows_its_schedule_on_the_real_link(roscore, tmp_path):
                     seen.append(state)
                 time.sleep(0.05)
         finally:
-            stop(node)
+            interrupt_then_kill(node, 10)
         log = (tmp_path / "node.log").read_text()
         # Coming back, the rate is set before the link goes up: "down at 18" may be caught
         # in between, "up at 9" never.
@@ -158,7 +150,7 @@ def test_node_publishes_coverage_for_the_true_pose(roscore, tmp_path):
         probe = subprocess.run([sys.executable, PROBE, "3.0"], env=roscore, capture_output=True,
                                text=True, timeout=90)
     finally:
-        stop(node)
+        interrupt_then_kill(node, 10)
     log = (tmp_path / "node.log").read_text()
     assert probe.returncode == 0, probe.stderr[-2000:] + log
     seen = json.loads(probe.stdout.strip().splitlines()[-1])

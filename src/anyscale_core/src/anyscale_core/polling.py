@@ -8,11 +8,8 @@ T = TypeVar("T")
 
 def wait_for(predicate: Callable[[], T], timeout_s: float = 10.0, period_s: float = 0.05) -> T:
     """The first truthy value of `predicate()` within timeout_s, polled every period_s; after
-    the deadline, what one last call returns."""
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        value = predicate()
-        if value:
-            return value
+    the deadline, what the last call returned."""
+    deadline = time.monotonic() + timeout_s
+    while not (value := predicate()) and time.monotonic() < deadline:
         time.sleep(period_s)
-    return predicate()
+    return value

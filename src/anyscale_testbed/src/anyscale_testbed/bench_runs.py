@@ -1,0 +1,57 @@
+"""How the benches and root tests run processes: scripts/run_testbed.py once, in a session of
+its own with its console in a file and Ctrl-C passed on as one SIGINT (so that the run removes
+its test bed); the newest record.json below a run's directory; a node stopped as Ctrl-C would."""
+import glob
+import os
+import signal
+import subprocess
+from typing import List, Optional
+
+from .testbed_record import TestbedRecord
+
+
+def run_logged(argv: List[str], out_dir: str) -> int:
+    """Runs argv with its output in out_dir/console.log; returns its exit code. A session of
+    its own: Ctrl-C reaches the bench only, which passes exactly one SIGINT on and waits for
+    the run's teardown (killing the run would leave its test bed behind)."""
+    os.makedirs(out_dir, exist_ok=True)
+    with open(os.path.join(out_dir, "console.log"), "wb") as log:
+        proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
+                                start_new_session=True)
+        try:
+            return proc.wait()
+        except KeyboardInterrupt:
+            proc.send_signal(signal.SIGINT)
+            _wait_through_interrupts(proc)
+            raise
+
+
+def _wait_through_interrupts(proc: subprocess.Popen):
+    while True:
+        try:
+            proc.wait()
+            return
+        except KeyboardInterrupt:
+            print("bench: still removing the test bed of the run ...", flush=True)
+
+
+def interrupt_then_kill(proc: subprocess.Popen, timeout_s: float):
+    """Ctrl-C for one process (a ROS node shuts down cleanly on it), SIGKILL after timeout_s."""
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
+def latest_record(out_dir: str) -> Optional[TestbedRecord]:
+    """The newest run's record below out_dir, None if there is none or it is unreadable."""
+    found = sorted(glob.glob(os.path.join(out_dir, "*", "record.json")))
+    if not found:
+        return None
+    try:
+        return TestbedRecord.load(found[-1])
+    except (OSError, ValueError, TypeError, KeyError) as e:
+        print(f"bench: {found[-1]}: unreadable record ({e})", flush=True)
+        return None

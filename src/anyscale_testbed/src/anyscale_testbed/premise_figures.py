@@ -1,0 +1,83 @@
+"""The test bed's premise in figures (issue 13 item 0), from a run's record: per configuration
+(where AMCL and AR ran), AMCL's rate and longest silence and the robot's speed. Pure (no ROS);
+tests/bench/bench_premise.py runs the test bed and prints these."""
+import math
+from typing import Dict, List
+
+import numpy as np
+
+from .testbed_record import TestbedRecord, mapping_at
+
+SPEED_WINDOW_S = 5.0
+# The robot also turns on the spot and waits at goals, where no rule limits its speed; the
+# cruise speed is this percentile of the speed over SPEED_WINDOW_S windows.
+CRUISE_PERCENTILE = 80
+COLUMNS = ["quota", "case", "configuration", "seconds", "amcl_hz", "amcl_longest_gap_s",
+           "mean_speed", "cruise_speed"]
+
+
+def configuration_name(mapping: Dict[str, str]) -> str:
+    """The paper's configurations (Fig. 5's colours) by where AMCL and AR run."""
+    return f"amcl@{mapping.get('amcl', '?')} ar@{mapping.get('ar_recognition', '?')}"
+
+
+def path_length(truth: np.ndarray) -> float:
+    """Metres driven along (t, x, y) rows."""
+    return float(np.sum(np.hypot(np.diff(truth[:, 1]), np.diff(truth[:, 2])))) \
+        if len(truth) >= 2 else 0.0
+
+
+def speeds_over_windows(truth: np.ndarray, start: float, end: float) -> List[float]:
+    """Speed (m/s) over each whole SPEED_WINDOW_S window of [start, end)."""
+    out = []
+    t = start
+    while t + SPEED_WINDOW_S <= end:
+        w = truth[(truth[:, 0] >= t) & (truth[:, 0] <= t + SPEED_WINDOW_S)]
+        if len(w) >= 2 and w[-1, 0] > w[0, 0]:
+            out.append(path_length(w) / (w[-1, 0] - w[0, 0]))
+        t += SPEED_WINDOW_S
+    return out
+
+
+def configuration_spans(rec: TestbedRecord, start: float, end: float):
+    """(configuration, t0, t1) spans of one mapping within [start, end)."""
+    cuts = sorted({start, end} | {t for t, _, _, _ in rec.mappings if start < t < end})
+    return [(configuration_name(mapping_at(rec, a)), a, b) for a, b in zip(cuts, cuts[1:])]
+
+
+def premise_figures(rec: TestbedRecord, skip_s: float) -> List[dict]:
+    """Per configuration, after skip_s of start-up: seconds spent, AMCL's rate and longest
+    silence, mean and cruise speed. Spans shorter than two speed windows are left out (a
+    move's own seconds say nothing of the configuration)."""
+    end = rec.finished_t if rec.finished_t is not None else max(
+        [t for t, _, _ in rec.truth] or [0.0])
+    truth = np.array(rec.truth, dtype=float).reshape(-1, 3)
+    poses = np.array(rec.receipts.get("/amcl_pose", []), dtype=float)
+    sums: Dict[str, dict] = {}
+    for name, a, b in configuration_spans(rec, skip_s, end):
+        if b - a < 2 * SPEED_WINDOW_S:
+            continue
+        s = sums.setdefault(name, {"seconds": 0.0, "poses": 0, "gap": 0.0, "dist": 0.0,
+                                   "windows": []})
+        inside = poses[(poses >= a) & (poses < b)]
+        s["seconds"] += b - a
+        s["poses"] += len(inside)
+        s["gap"] = max(s["gap"], float(np.max(np.diff(np.concatenate(([a], inside, [b]))))))
+        s["dist"] += path_length(truth[(truth[:, 0] >= a) & (truth[:, 0] < b)])
+        s["windows"] += speeds_over_windows(truth, a, b)
+    return [{"configuration": name, "seconds": s["seconds"],
+             "amcl_hz": s["poses"] / s["seconds"], "amcl_longest_gap_s": s["gap"],
+             "mean_speed": s["dist"] / s["seconds"],
+             "cruise_speed": (float(np.percentile(s["windows"], CRUISE_PERCENTILE))
+                              if s["windows"] else math.nan)}
+            for name, s in sorted(sums.items())]
+
+
+def format_markdown(rows: List[dict]) -> str:
+    lines = ["| robot quota | run | configuration | s | AMCL Hz | AMCL longest gap s | "
+             "mean m/s | cruise m/s |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['quota']} | {r['case']} | {r['configuration']} | {r['seconds']:.0f} "
+                     f"| {r['amcl_hz']:.2f} | {r['amcl_longest_gap_s']:.2f} | "
+                     f"{r['mean_speed']:.3f} | {r['cruise_speed']:.3f} |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,36 @@
+"""The benches' run helper: console captured, exit code passed on, newest record read."""
+import os
+import sys
+
+from anyscale_testbed.bench_runs import interrupt_then_kill, latest_record, run_logged
+from anyscale_testbed.testbed_record import TestbedRecord
+
+
+def test_run_logged_keeps_the_console_and_the_exit_code(tmp_path):
+    code = run_logged([sys.executable, "-c", "import sys; print('hello'); "
+                       "print('oops', file=sys.stderr); sys.exit(3)"], str(tmp_path / "run"))
+    assert code == 3
+    text = (tmp_path / "run" / "console.log").read_text()
+    assert "hello" in text and "oops" in text
+
+
+def test_latest_record_is_the_newest_and_none_when_missing_or_broken(tmp_path, capsys):
+    assert latest_record(str(tmp_path)) is None
+    for stamp, world in (("20261123-100000", "old"), ("20261123-110000", "new")):
+        os.makedirs(tmp_path / f"office_floor-{stamp}")
+        TestbedRecord(world=world).save(str(tmp_path / f"office_floor-{stamp}" / "record.json"))
+    assert latest_record(str(tmp_path)).world == "new"
+    os.makedirs(tmp_path / "office_floor-20261123-120000")
+    (tmp_path / "office_floor-20261123-120000" / "record.json").write_text("{not json")
+    assert latest_record(str(tmp_path)) is None
+    assert "unreadable record" in capsys.readouterr().out
+
+
+def test_interrupt_then_kill_ends_a_process_that_ignores_ctrl_c():
+    import subprocess
+    proc = subprocess.Popen([sys.executable, "-c", "import signal, time; "
+                             "signal.signal(signal.SIGINT, signal.SIG_IGN); print(1, flush=True); "
+                             "time.sleep(30)"], stdout=subprocess.PIPE)
+    proc.stdout.readline()                  # the SIGINT handler is in place
+    interrupt_then_kill(proc, 0.2)
+    assert proc.returncode == -9

@@ -1,0 +1,60 @@
+"""The premise bench's figures from synthetic records: rates and speeds per configuration."""
+import math
+
+import pytest
+
+from anyscale_testbed.premise_figures import (configuration_name, format_markdown,
+                                              premise_figures)
+from anyscale_testbed.testbed_record import TestbedRecord
+
+ROBOT = {"amcl": "robot", "ar_recognition": "robot"}
+LAPTOP = {"amcl": "laptop", "ar_recognition": "laptop"}
+
+
+def straight_line(speeds, dt=0.1):
+    """Ground truth along x: speeds[(t0, t1)] = v, piecewise."""
+    rows, x, t = [], 0.0, 0.0
+    for (t0, t1), v in speeds:
+        while t < t1:
+            rows.append((round(t, 3), x, 0.0))
+            x += v * dt
+            t += dt
+    return rows
+
+
+def test_rate_speed_and_gap_per_configuration():
+    poses = [30 + 0.5 * i for i in range(60)] + [60 + 0.2 * i for i in range(200)]
+    poses.remove(40.0)                      # one missed update: a 1 s gap on the robot
+    rec = TestbedRecord(mappings=[(0.0, ROBOT, 0.0, 0.0), (60.0, LAPTOP, 0.0, 0.0)],
+                        receipts={"/amcl_pose": poses},
+                        truth=straight_line([((0, 60), 0.2), ((60, 100), 0.4)]),
+                        finished_t=100.0)
+    rows = {r["configuration"]: r for r in premise_figures(rec, skip_s=30.0)}
+    robot, laptop = rows[configuration_name(ROBOT)], rows[configuration_name(LAPTOP)]
+    assert robot["seconds"] == pytest.approx(30.0)
+    assert robot["amcl_hz"] == pytest.approx(59 / 30)
+    assert robot["amcl_longest_gap_s"] == pytest.approx(1.0)
+    assert robot["mean_speed"] == pytest.approx(0.2, abs=0.01)
+    assert robot["cruise_speed"] == pytest.approx(0.2, abs=0.01)
+    assert laptop["amcl_hz"] == pytest.approx(5.0)
+    assert laptop["mean_speed"] == pytest.approx(0.4, abs=0.01)
+
+
+def test_short_spans_and_start_up_are_left_out():
+    rec = TestbedRecord(mappings=[(0.0, ROBOT, 0, 0), (50.0, LAPTOP, 0, 0), (55.0, ROBOT, 0, 0)],
+                        receipts={"/amcl_pose": [float(t) for t in range(100)]},
+                        truth=straight_line([((0, 100), 0.1)]), finished_t=100.0)
+    rows = premise_figures(rec, skip_s=20.0)
+    assert [r["configuration"] for r in rows] == [configuration_name(ROBOT)]
+    assert rows[0]["seconds"] == pytest.approx(75.0)       # 20-50 and 55-100
+
+
+def test_cruise_ignores_standing_still_and_markdown_has_every_row():
+    rec = TestbedRecord(mappings=[(0.0, ROBOT, 0, 0)], receipts={"/amcl_pose": [1.0, 2.0]},
+                        truth=straight_line([((0, 10), 0.0), ((10, 60), 0.3)]), finished_t=60.0)
+    row = premise_figures(rec, skip_s=0.0)[0]
+    assert row["mean_speed"] == pytest.approx(0.25, abs=0.01)
+    assert row["cruise_speed"] == pytest.approx(0.3, abs=0.01)
+    text = format_markdown([{"quota": "0.33", "case": "robot", **row}])
+    assert text.count("\n") == 3 and "| 0.33 | robot | amcl@robot ar@robot |" in text
+    assert not math.isnan(row["cruise_speed"])

@@ -1,89 +1,21 @@
 // gtest: the supervisor with real child processes: exit codes, signals, escalation, no zombies.
+// Its warm standbys are tested in test_supervisor_standby.cpp.
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <cerrno>
 #include <chrono>
-#include <filesystem>
+#include <cstdio>
 #include <fstream>
-#include <sstream>
+#include <string>
 #include <thread>
 
 #include "anyscale_agent_cpp/supervisor.h"
+#include "supervisor_test_util.h"
 
 using namespace anyscale_agent;
-using Clock = std::chrono::steady_clock;
-
-namespace
-{
-// The logs of one test run, in a directory removed when the run ends.
-class TempDir
-{
-public:
-  TempDir()
-  {
-    char path[] = "/tmp/anyscale_supervisor_test_XXXXXX";
-    if (::mkdtemp(path))
-      path_ = path;
-  }
-  ~TempDir()
-  {
-    std::error_code ignored;
-    if (!path_.empty())
-      std::filesystem::remove_all(path_, ignored);
-  }
-  const std::string& path() const { return path_; }
-
-private:
-  std::string path_;
-};
-
-std::string tempLog(const std::string& tag)
-{
-  static TempDir dir;
-  return dir.path() + "/" + tag + ".log";
-}
-
-std::string readFile(const std::string& path)
-{
-  std::ifstream f(path);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ss.str();
-}
-
-// A process that is gone and reaped: kill() finds nothing (a zombie would still be found).
-bool processGone(int pid)
-{
-  return ::kill(pid, 0) != 0 && errno == ESRCH;
-}
-
-bool groupGone(int pgid)
-{
-  return ::kill(-pgid, 0) != 0 && errno == ESRCH;
-}
-
-
-std::vector<std::string> sh(const std::string& script)
-{
-  return {"/bin/sh", "-c", script};
-}
-
-bool waitUntil(const std::function<bool()>& cond, double timeout_s, Supervisor& s)
-{
-  const auto end = Clock::now() + std::chrono::duration<double>(timeout_s);
-  while (Clock::now() < end)
-  {
-    s.poll();
-    if (cond())
-      return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  return cond();
-}
-}  // namespace
+using namespace supervisor_test;
 
 TEST(Supervisor, ReportsExitCodeOfUnrequestedExit)
 {
@@ -259,98 +191,6 @@ TEST(Supervisor, OutputGoesToTheLogFile)
   EXPECT_NE(out.find("hello-out"), std::string::npos);
   EXPECT_NE(out.find("hello-err"), std::string::npos);
   EXPECT_EQ(s.info("echo")->log_file, log);
-}
-
-static bool standbyGone(Supervisor& s, const std::string& name)
-{
-  return waitUntil([&] { return !s.standby(name) || s.standby(name)->pid == 0; }, 10.0, s);
-}
-
-TEST(Supervisor, StandbyWaitsForActivationThenRunsAsANode)
-{
-  const std::string log = tempLog("standby");
-  std::remove(log.c_str());
-  Supervisor s;
-  std::string err;
-  const int pid = s.startStandby("warm", sh("read line; echo \"got:$line\"; exit 4"), log, &err);
-  ASSERT_GT(pid, 0) << err;
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
-  EXPECT_EQ(s.standby("warm")->state, ProcState::Standby);
-  EXPECT_FALSE(s.info("warm")) << "a standby is no node";
-  EXPECT_EQ(readFile(log), "");  // still waiting
-  EXPECT_EQ(s.startStandby("warm", {"/bin/true"}, log, &err), 0) << "one standby per node";
-
-  EXPECT_EQ(s.activate("warm", &err), pid) << err;
-  EXPECT_EQ(s.info("warm")->state, ProcState::Starting);
-  EXPECT_FALSE(s.standby("warm")) << "the standby became the node";
-  ASSERT_TRUE(s.waitGone("warm", 10.0));
-  EXPECT_EQ(readFile(log), "got:start\n");
-  EXPECT_EQ(s.info("warm")->exit_code, 4);
-  // Once activated it is a node like any other: its own exit is reported.
-  EXPECT_EQ(s.takeUnrequestedExits(), std::vector<std::string>{"warm"});
-}
-
-TEST(Supervisor, StandbyWaitsBesideTheRunningNodeAndTakesOverWhenItHasGone)
-{
-  Supervisor s;
-  std::string err;
-  const int node = s.start("n", {"/bin/sleep", "30"}, tempLog("n"), &err);
-  ASSERT_GT(node, 0) << err;
-  const int standby = s.startStandby("n", sh("read line; sleep 30"), tempLog("n_standby"), &err);
-  ASSERT_GT(standby, 0) << err;
-  EXPECT_EQ(s.info("n")->pid, node);
-  EXPECT_EQ(s.standby("n")->pid, standby);
-  EXPECT_EQ(s.snapshot().size(), 2u);  // the node, then its standby
-  EXPECT_EQ(s.activate("n", &err), 0);
-  EXPECT_NE(err.find("still runs"), std::string::npos) << err;
-  ASSERT_TRUE(s.stop("n"));
-  ASSERT_TRUE(s.waitGone("n", 10.0));
-  EXPECT_EQ(s.standby("n")->pid, standby) << "stopping the node leaves its standby";
-  EXPECT_EQ(s.activate("n", &err), standby) << err;
-  EXPECT_EQ(s.info("n")->pid, standby);
-  s.stop("n");
-  ASSERT_TRUE(s.waitGone("n", 10.0));
-}
-
-TEST(Supervisor, StandbyThatEndsIsNoNodeExitAndCannotBeActivated)
-{
-  Supervisor s;
-  std::string err;
-  ASSERT_GT(s.startStandby("broken", sh("exit 1"), tempLog("broken"), &err), 0) << err;
-  ASSERT_TRUE(standbyGone(s, "broken"));
-  EXPECT_TRUE(s.takeUnrequestedExits().empty());
-  EXPECT_EQ(s.activate("broken", &err), 0);
-  EXPECT_NE(err.find("no warm standby"), std::string::npos) << err;
-
-  ASSERT_GT(s.start("plain", {"/bin/sleep", "30"}, tempLog("plain"), &err), 0) << err;
-  EXPECT_EQ(s.activate("plain", &err), 0) << "a running node is no standby";
-  s.stop("plain");
-  ASSERT_TRUE(s.waitGone("plain", 10.0));
-}
-
-TEST(Supervisor, StoppedStandbyEndsAndIsNoNodeExit)
-{
-  Supervisor s;
-  std::string err;
-  const int pid = s.startStandby("waiting", sh("read line; sleep 30"), tempLog("waiting"), &err);
-  ASSERT_GT(pid, 0) << err;
-  EXPECT_FALSE(s.stop("waiting")) << "stop() is for nodes";
-  ASSERT_TRUE(s.stopStandby("waiting"));
-  ASSERT_TRUE(standbyGone(s, "waiting"));
-  EXPECT_TRUE(processGone(pid));
-  EXPECT_TRUE(s.takeUnrequestedExits().empty());
-}
-
-TEST(Supervisor, DestructorEndsStandbysToo)
-{
-  int pid = 0;
-  {
-    Supervisor s;
-    std::string err;
-    pid = s.startStandby("left_waiting", sh("read line; sleep 30"), tempLog("left_waiting"), &err);
-    ASSERT_GT(pid, 0) << err;
-  }
-  EXPECT_TRUE(processGone(pid));
 }
 
 TEST(Supervisor, DestructorStopsEverything)

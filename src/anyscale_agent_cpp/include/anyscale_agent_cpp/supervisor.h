@@ -1,4 +1,5 @@
-// Process supervisor: fork/exec of node processes in their own session, staged stop, reaping.
+// Process supervisor: node processes in their own session and process group. Staged stop and
+// reaping are in supervisor.cpp; starts, warm standbys and their activation in supervisor_spawn.cpp.
 #pragma once
 
 #include <chrono>

@@ -6,7 +6,8 @@ import pytest
 
 from anyscale_nav_demo.floor_plan import make_loop_floor
 from anyscale_nav_demo.particle_filter import (BeamLikelihood, LikelihoodField, ParticleFilter,
-                                               kld_sample_count, sample_motion_diff, systematic_resample)
+                                               kld_sample_count, moved_enough, sample_motion_diff,
+                                               systematic_resample)
 from anyscale_nav_demo.raycast import cast_rays
 
 ANGLES = np.linspace(-2.09, 2.09, 60)
@@ -176,3 +177,12 @@ def test_beam_likelihood_in_blocks_equals_the_direct_formula(floor):
     assert got == pytest.approx(expected, rel=1e-12)
     assert len(set(np.round(got, 6))) > n // 2          # not one value for all
     assert model.weights(particles[:10], ranges, ANGLES, offset, range_max) == pytest.approx(expected[:10])
+
+
+def test_update_is_due_after_enough_motion_or_turn():
+    start = (1.0, 2.0, 0.5)
+    assert not moved_enough(start, (1.03, 2.0, 0.52), 0.05, 0.05)
+    assert moved_enough(start, (1.03, 2.05, 0.5), 0.05, 0.05)       # about 6 cm
+    assert moved_enough(start, (1.0, 2.0, 0.44), 0.05, 0.05)        # turned back 0.06 rad
+    # Across the +-pi seam a small turn stays small.
+    assert not moved_enough((0.0, 0.0, math.pi - 0.01), (0.0, 0.0, -math.pi + 0.01), 0.05, 0.05)

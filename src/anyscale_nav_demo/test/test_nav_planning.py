@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from anyscale_nav_demo import costmap as cm
-from anyscale_nav_demo.dwa import DWAConfig, choose_velocity, rollout, window_samples
+from anyscale_nav_demo.dwa import (DWAConfig, choose_velocity, rollout, rotate_in_place_rate,
+                                   scan_obstacle_points, window_samples)
 
 RES = 0.1
 
@@ -115,3 +116,23 @@ def test_dwa_reports_failure_when_boxed_in():
     path = np.column_stack([np.linspace(1, 9, 80), np.full(80, 3.0)])
     v, w, ok = choose_velocity((1.0, 3.0, 0.0), (0.2, 0.0), path, open_costmap(), ring, DWAConfig())
     assert not ok and v == 0.0 and w == 0.0
+
+
+
+def test_scan_obstacle_points_keep_near_returns_in_the_map_frame():
+    # Sensor at (1, 2) facing +y; beams every 45 degrees from -90 to +135 (sensor frame).
+    ranges = [1.0, 5.0, 2.0, float("inf"), 0.01, 1.0]   # too far, no return, too near between
+    pts = scan_obstacle_points((1.0, 2.0, math.pi / 2), ranges, -math.pi / 2, math.pi / 4, 0.05)
+    # Kept: (1.0, -90 deg) -> (2, 2), (2.0, 0 deg) -> (1, 4), (1.0, 135 deg) -> 225 deg in the
+    # map; every second of them stays.
+    h = math.sqrt(0.5)
+    assert np.allclose(pts, [[2.0, 2.0], [1.0 - h, 2.0 - h]])
+
+
+def test_rotate_in_place_rate_is_proportional_within_its_limits():
+    assert rotate_in_place_rate(0.03, 0.0, 1.0) == 0.0                 # close enough
+    assert rotate_in_place_rate(0.1, 0.0, 1.0) == pytest.approx(0.2)   # at least 0.2 rad/s
+    assert rotate_in_place_rate(0.0, 0.5, 1.0) == pytest.approx(-0.75)
+    assert rotate_in_place_rate(2.0, 0.0, 1.0) == pytest.approx(1.0)   # at most max_w
+    # The short way round across the +-pi seam: from 3.1 to -3.1 is +0.08 rad.
+    assert rotate_in_place_rate(-3.1, 3.1, 1.0) == pytest.approx(0.2)

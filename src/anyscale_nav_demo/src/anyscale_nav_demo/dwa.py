@@ -19,6 +19,26 @@ class DWAConfig:
         del self.__dict__["self"]
 
 
+def scan_obstacle_points(sensor_pose, ranges, angle_min, angle_increment, range_min,
+                         max_range=3.0):
+    """(N, 2) points, in the frame sensor_pose is given in, of the laser returns between range_min and
+    max_range: the obstacles choose_velocity checks the arcs against. Every second return is
+    kept, which halves the KD-tree's work."""
+    x, y, th = sensor_pose
+    r = np.asarray(ranges)
+    a = angle_min + np.arange(len(r)) * angle_increment
+    ok = np.isfinite(r) & (r < max_range) & (r > range_min)
+    pts = np.column_stack([x + r[ok] * np.cos(th + a[ok]), y + r[ok] * np.sin(th + a[ok])])
+    return pts[::2]
+
+
+def rotate_in_place_rate(target_yaw, yaw, max_w):
+    """Turn rate towards target_yaw: proportional to the error, at least 0.2 rad/s, at most
+    max_w; 0 within 0.05 rad."""
+    err = float(wrap_angle(target_yaw - yaw))
+    return math.copysign(min(max_w, max(0.2, 1.5 * abs(err))), err) if abs(err) > 0.05 else 0.0
+
+
 def window_samples(v, w, cfg, max_v, max_w):
     """Velocity pairs reachable within one control period under the acceleration limits."""
     dt = max(cfg.control_period, 0.1)

@@ -127,6 +127,14 @@ class BeamLikelihood:
         return tuple(b[:n] for b in self.buffers)
 
 
+def moved_enough(odom_before, odom_now, min_distance, min_angle):
+    """amcl's update_min_d / update_min_a rule: a filter update is due once the odometry moved
+    min_distance metres or turned min_angle radians since the last update."""
+    a, b = odom_before, odom_now
+    return (math.hypot(b[0] - a[0], b[1] - a[1]) >= min_distance
+            or abs(math.remainder(b[2] - a[2], 2 * math.pi)) >= min_angle)
+
+
 def kld_sample_count(k, err, z, n_min, n_max):
     """Particles needed so the KL divergence to the true posterior stays below err (Fox 2003).
 

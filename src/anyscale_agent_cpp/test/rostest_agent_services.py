@@ -118,25 +118,26 @@ class AgentServicesTest(unittest.TestCase):
                          ["warm_talker"])
         self.assertTrue(alive(standby.pid))
 
-        res = self._start("warm_talker")
-        self.assertTrue(res.success, res.message)
-        self.assertIn("warm standby", res.message)
-        self.assertEqual(res.pid, standby.pid)
-        self.assertEqual(wait_for(lambda: registered_pid("/warm_talker"), 20.0), res.pid)
+        first_start = self._start("warm_talker")
+        self.assertTrue(first_start.success, first_start.message)
+        self.assertIn("warm standby", first_start.message)
+        self.assertEqual(first_start.pid, standby.pid)
+        self.assertEqual(wait_for(lambda: registered_pid("/warm_talker"), 20.0), first_start.pid)
         from std_msgs.msg import String
         rospy.wait_for_message("/warm_chatter", String, timeout=10.0)   # its remap in effect
         # ~standby_delay_s (2 s) after the node's start, the next standby waits beside it.
-        again = wait_for(lambda: self._standby("/warm_talker"), 15.0)
-        self.assertTrue(again, "no new standby while the node runs")
-        self.assertNotEqual(again.pid, res.pid)
-        self.assertEqual(self.agent.node("/warm_talker").pid, res.pid)  # the node is listed first
+        next_standby = wait_for(lambda: self._standby("/warm_talker"), 15.0)
+        self.assertTrue(next_standby, "no new standby while the node runs")
+        self.assertNotEqual(next_standby.pid, first_start.pid)
+        self.assertEqual(self.agent.node("/warm_talker").pid, first_start.pid)  # the node is listed first
         stop = self.agent.stop(node="warm_talker", wait=True)
         self.assertTrue(stop.success, stop.message)
-        self.assertFalse(alive(res.pid))
-        self.assertTrue(alive(again.pid), "stopping the node ended its standby")
+        self.assertFalse(alive(first_start.pid))
+        self.assertTrue(alive(next_standby.pid), "stopping the node ended its standby")
         # The next start takes that standby at once.
-        res2 = self._start("warm_talker")
-        self.assertEqual((res2.success, res2.pid), (True, again.pid), res2.message)
+        second_start = self._start("warm_talker")
+        self.assertEqual((second_start.success, second_start.pid), (True, next_standby.pid),
+                         second_start.message)
         self.agent.stop(node="warm_talker", wait=True)
 
     def test_lease_renewed_keeps_running_then_expires(self):

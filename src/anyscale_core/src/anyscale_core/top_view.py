@@ -14,7 +14,7 @@ STANDBY = 6
 KIND_NAMES = {0: "START", 1: "MIGRATE", 2: "MIGRATE_BACK", 3: "ADOPT", 4: "FAILED", 5: "RESTART"}
 
 
-def _num(value: float, fmt: str, unit: str = "") -> str:
+def _number_or_dash(value: float, fmt: str, unit: str = "") -> str:
     return "-" if value is None or not math.isfinite(value) else f"{value:{fmt}}{unit}"
 
 
@@ -43,10 +43,10 @@ def render(statuses: Mapping[str, object], mapping, events: Sequence[object],
             link, rtt, bw = "master", "-", "-"
         else:
             link = "up" if s.link.up else "DOWN"
-            rtt = _num(s.link.rtt_mean_s * 1e3, ".1f", " ms")
-            bw = _num(s.link.bandwidth_mbps, ".1f", " Mbit/s")
-        out.append(f"{scale:<10} {_num(s.cpu_percent, '5.1f', '%'):>6} "
-                   f"{_num(mem, '5.1f', '%'):>9}  {link:<5} {rtt:>8} {bw:>12}")
+            rtt = _number_or_dash(s.link.rtt_mean_s * 1e3, ".1f", " ms")
+            bw = _number_or_dash(s.link.bandwidth_mbps, ".1f", " Mbit/s")
+        out.append(f"{scale:<10} {_number_or_dash(s.cpu_percent, '5.1f', '%'):>6} "
+                   f"{_number_or_dash(mem, '5.1f', '%'):>9}  {link:<5} {rtt:>8} {bw:>12}")
     for scale in sorted(statuses):
         link = statuses[scale].link
         if statuses[scale].is_master and link.uplink_interface:
@@ -93,11 +93,12 @@ def render(statuses: Mapping[str, object], mapping, events: Sequence[object],
                 status = "below min" if rate < c.freq_min else \
                     ("ok" if rate >= 0.9 * c.freq_opt else "above min")
             label = f"{c.publisher}->{c.subscriber} {c.topic}"
-            out.append(f"{label[:40]:<40} {_num(rate, '.1f', ' Hz'):>8} {c.freq_min:>6g} "
+            rate_text = _number_or_dash(rate, '.1f', ' Hz')
+            out.append(f"{label[:40]:<40} {rate_text:>8} {c.freq_min:>6g} "
                        f"{c.freq_opt:>6g}  {status}" + (" (critical)" if c.tolerance == 0 else ""))
     out += ["", "LAST EVENTS (received since top started)"]
     for e in list(events)[-8:]:
-        dur = _num(e.duration_s, ".2f", " s")
+        dur = _number_or_dash(e.duration_s, ".2f", " s")
         out.append(f"  {KIND_NAMES.get(e.kind, e.kind):<12} {e.node:<16} "
                    f"{e.from_scale or '-'} -> {e.to_scale}  {dur:>7}  {e.reason}"
                    + ("" if e.success else "  FAILED"))

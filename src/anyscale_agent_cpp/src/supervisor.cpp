@@ -65,6 +65,15 @@ bool Supervisor::isAlive(const Record& r)
   return r.info.pid != 0;
 }
 
+std::optional<ProcessInfo> Supervisor::standby(const std::string& name) const
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = standbys_.find(name);
+  if (it == standbys_.end())
+    return std::nullopt;
+  return it->second.info;
+}
+
 bool Supervisor::stopStandby(const std::string& name)
 {
   std::lock_guard<std::mutex> lock(mutex_);

@@ -141,13 +141,4 @@ int Supervisor::activate(const std::string& name, std::string* error)
   return pid;
 }
 
-std::optional<ProcessInfo> Supervisor::standby(const std::string& name) const
-{
-  std::lock_guard<std::mutex> lock(mutex_);
-  const auto it = standbys_.find(name);
-  if (it == standbys_.end())
-    return std::nullopt;
-  return it->second.info;
-}
-
 }  // namespace anyscale_agent

@@ -25,7 +25,7 @@ import sys
 import time
 
 from anyscale_testbed.premise_figures import COLUMNS, format_markdown, premise_figures
-from anyscale_testbed.bench_runs import latest_record, run_logged
+from anyscale_testbed.bench_runs import interrupt_on_sigterm, latest_record, run_logged
 from anyscale_testbed.two_scale_testbed import missing_capabilities
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -69,6 +69,7 @@ def run_once(quota, case: str, duration: float, out_dir: str) -> int:
 
 def main(argv=None) -> int:
     args = parse_args(argv)
+    interrupt_on_sigterm()
     missing = missing_capabilities()
     if missing:
         sys.exit("bench: the test bed needs " + "; ".join(missing))

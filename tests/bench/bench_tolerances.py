@@ -22,7 +22,7 @@ import time
 
 import yaml
 
-from anyscale_testbed.bench_runs import latest_record, run_logged
+from anyscale_testbed.bench_runs import interrupt_on_sigterm, latest_record, run_logged
 from anyscale_testbed.tolerance_report import (format_markdown, format_table, row_cells, run_row,
                                                topics_of, write_csv)
 from anyscale_testbed.two_scale_testbed import missing_capabilities
@@ -73,6 +73,7 @@ def run_once(args, start_goal: int, out_dir: str) -> int:
 
 def main(argv=None) -> int:
     args = parse_args(argv)
+    interrupt_on_sigterm()
     missing = missing_capabilities()
     if missing:
         sys.exit("bench: the test bed needs " + "; ".join(missing))

@@ -34,3 +34,17 @@ def test_interrupt_then_kill_ends_a_process_that_ignores_ctrl_c():
     proc.stdout.readline()                  # the SIGINT handler is in place
     interrupt_then_kill(proc, 0.2)
     assert proc.returncode == -9
+
+
+def test_sigterm_interrupts_like_ctrl_c():
+    import signal
+    import subprocess
+    code = ("import os, signal, time, sys\n"
+            "from anyscale_testbed.bench_runs import interrupt_on_sigterm\n"
+            "interrupt_on_sigterm()\n"
+            "try:\n"
+            "    os.kill(os.getpid(), signal.SIGTERM); time.sleep(5)\n"
+            "except KeyboardInterrupt:\n"
+            "    sys.exit(42)\n")
+    assert subprocess.run([sys.executable, "-c", code], timeout=10).returncode == 42
+    assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL    # this process: untouched

@@ -10,6 +10,15 @@ from typing import List, Optional
 from .testbed_record import TestbedRecord
 
 
+def interrupt_on_sigterm():
+    """A plain kill ends a bench as Ctrl-C does: the run in progress tears its test bed down
+    and the bench prints the runs that ended. (A bench started in the background of a
+    non-interactive shell ignores SIGINT, so SIGTERM is how it is stopped there.)"""
+    def raise_interrupt(*_):
+        raise KeyboardInterrupt
+    signal.signal(signal.SIGTERM, raise_interrupt)
+
+
 def run_logged(argv: List[str], out_dir: str) -> int:
     """Runs argv with its output in out_dir/console.log; returns its exit code. A session of
     its own: Ctrl-C reaches the bench only, which passes exactly one SIGINT on and waits for

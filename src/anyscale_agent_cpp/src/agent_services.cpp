@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "anyscale_agent_cpp/param_loader.h"
+#include "anyscale_agent_cpp/process_priority.h"
 
 namespace anyscale_agent
 {
@@ -41,6 +42,12 @@ bool isPythonScript(const std::string& path)
 bool isWaiting(const std::optional<ProcessInfo>& standby)
 {
   return standby && standby->pid != 0 && standby->state == ProcState::Standby;
+}
+
+// The node has an instance here that is not on its way out.
+bool runsHere(const std::optional<ProcessInfo>& node)
+{
+  return node && node->pid != 0 && (node->state == ProcState::Starting || node->state == ProcState::Running);
 }
 }  // namespace
 
@@ -273,11 +280,15 @@ void AgentNode::keepStandbysReady()
     if (!decl->warm_start)
       continue;
     const std::string name = qualified(node);
+    const auto running = supervisor_.info(name);
     if (const auto waiting = supervisor_.standby(name); waiting && waiting->pid != 0)
+    {
+      if (!runsHere(running))
+        hurryStandby(name, waiting->pid);
       continue;
+    }
     // Also while the node runs here: it is ready the moment the node leaves or ends.
     double& due = standby_due_.emplace(name, now).first->second;
-    const auto running = supervisor_.info(name);
     if (running && running->pid != 0 && running->pid == last_standby_pid_[name])
     {
       // The last standby became the node: the next one once the node's own start is over.
@@ -305,6 +316,25 @@ void AgentNode::keepStandbysReady()
       ROS_ERROR("no warm standby of %s: %s; it starts cold", name.c_str(), e.what());
     }
   }
+}
+
+// A standby imports in SCHED_IDLE (scripts/python_standby), taking only CPU nobody else wants.
+// On a robot whose quota its nodes use up (AR recognition takes every frame it can), that is
+// none: a standby prepared while the node ran here was found still importing when a link loss
+// brought the node back, and the return took 2.9 s to register. So once the node does not run
+// here, this scale's standby is the one its next start here will use, and it imports at the
+// nodes' own priority: a one-off 0.3-0.5 s of CPU (AMCL, AR), paid when the node's own
+// instance here has just stopped and left its CPU.
+void AgentNode::hurryStandby(const std::string& name, int pid)
+{
+  if (!inIdleScheduling(pid))
+    return;
+  std::string error;
+  if (leaveIdleScheduling(pid, &error))
+    ROS_INFO("warm standby of %s (pid %d): imports at normal priority now, the node does not run here",
+             name.c_str(), pid);
+  else
+    ROS_WARN_THROTTLE(30.0, "warm standby of %s: %s", name.c_str(), error.c_str());
 }
 
 bool AgentNode::onList(anyscale_msgs::ListNodes::Request&, anyscale_msgs::ListNodes::Response& res)

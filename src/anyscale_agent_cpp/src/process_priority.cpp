@@ -1,6 +1,8 @@
-// Nice values of a process's threads, through /proc/<pid>/task and setpriority(2).
+// Nice values and scheduling policies of a process's threads, through /proc/<pid>/task,
+// setpriority(2) and sched_setscheduler(2).
 #include "anyscale_agent_cpp/process_priority.h"
 
+#include <sched.h>
 #include <sys/resource.h>
 
 #include <cerrno>
@@ -58,6 +60,36 @@ std::vector<int> threadNices(int pid)
       nices.push_back(nice);
   }
   return nices;
+}
+
+bool leaveIdleScheduling(int pid, std::string* error)
+{
+  const auto tids = threadIds(pid);
+  if (tids.empty())
+  {
+    *error = "process " + std::to_string(pid) + " is gone";
+    return false;
+  }
+  const sched_param normal{ 0 };
+  for (const int tid : tids)
+  {
+    if (::sched_getscheduler(tid) != SCHED_IDLE)
+      continue;  // also -1 (ESRCH): the thread ended meanwhile
+    if (::sched_setscheduler(tid, SCHED_OTHER, &normal) != 0 && errno != ESRCH)
+    {
+      *error = "sched_setscheduler(" + std::to_string(tid) + ", SCHED_OTHER): " + std::strerror(errno);
+      return false;
+    }
+  }
+  return true;
+}
+
+bool inIdleScheduling(int pid)
+{
+  for (const int tid : threadIds(pid))
+    if (::sched_getscheduler(tid) == SCHED_IDLE)
+      return true;
+  return false;
 }
 
 }  // namespace anyscale_agent

@@ -15,6 +15,8 @@ extern char** environ;
 
 namespace
 {
+using anyscale_agent::inIdleScheduling;
+using anyscale_agent::leaveIdleScheduling;
 using anyscale_agent::setProcessNice;
 using anyscale_agent::threadNices;
 
@@ -22,12 +24,17 @@ using anyscale_agent::threadNices;
 class TwoThreadChild
 {
 public:
-  TwoThreadChild()
+  // idle: the child puts itself in SCHED_IDLE first, as scripts/python_standby does.
+  explicit TwoThreadChild(bool idle = false)
   {
     const char* argv[] = { "/usr/bin/python3", "-c",
-                           "import threading, time\n"
-                           "threading.Thread(target=time.sleep, args=(60,), daemon=True).start()\n"
-                           "time.sleep(60)\n",
+                           idle ? "import os, threading, time\n"
+                                  "os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))\n"
+                                  "threading.Thread(target=time.sleep, args=(60,), daemon=True).start()\n"
+                                  "time.sleep(60)\n" :
+                                  "import threading, time\n"
+                                  "threading.Thread(target=time.sleep, args=(60,), daemon=True).start()\n"
+                                  "time.sleep(60)\n",
                            nullptr };
     if (::posix_spawn(&pid_, argv[0], nullptr, nullptr, const_cast<char**>(argv), environ) != 0)
       pid_ = 0;
@@ -83,4 +90,22 @@ TEST(ProcessPriority, GoneProcessIsAnError)
   EXPECT_FALSE(setProcessNice(pid, 3, &error));
   EXPECT_NE(error.find("gone"), std::string::npos) << error;
   EXPECT_TRUE(threadNices(pid).empty());
+  EXPECT_FALSE(leaveIdleScheduling(pid, &error));
+  EXPECT_FALSE(inIdleScheduling(pid));
+}
+
+TEST(ProcessPriority, IdleThreadsLeaveSchedIdle)
+{
+  if (::geteuid() != 0)
+    GTEST_SKIP() << "leaving SCHED_IDLE for another process needs root (CAP_SYS_NICE)";
+  TwoThreadChild child(true);
+  ASSERT_GT(child.pid(), 0);
+  ASSERT_EQ(threadNices(child.pid()).size(), 2u);
+  EXPECT_TRUE(inIdleScheduling(child.pid()));
+  std::string error;
+  ASSERT_TRUE(leaveIdleScheduling(child.pid(), &error)) << error;
+  EXPECT_FALSE(inIdleScheduling(child.pid()));
+  TwoThreadChild normal;
+  EXPECT_FALSE(inIdleScheduling(normal.pid()));
+  EXPECT_TRUE(leaveIdleScheduling(normal.pid(), &error)) << error;  // nothing to move
 }

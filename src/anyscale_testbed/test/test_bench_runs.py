@@ -48,3 +48,33 @@ def test_sigterm_interrupts_like_ctrl_c():
             "    sys.exit(42)\n")
     assert subprocess.run([sys.executable, "-c", code], timeout=10).returncode == 42
     assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL    # this process: untouched
+
+
+def test_an_interrupted_bench_ends_its_run_even_where_sigint_is_ignored(tmp_path):
+    """A bench in the background of a non-interactive shell ignores SIGINT, and so does the run
+    it starts; SIGTERM reaches both."""
+    import signal
+    import subprocess
+    import time
+    run = ("import signal, sys, time\n"
+           "def bye(*_):\n"
+           "    print('torn down', flush=True); sys.exit(0)\n"
+           "signal.signal(signal.SIGTERM, bye)\n"
+           "print('running', flush=True)\n"
+           "time.sleep(30)\n")
+    bench = ("import sys\n"
+             "from anyscale_testbed.bench_runs import interrupt_on_sigterm, run_logged\n"
+             "interrupt_on_sigterm()\n"
+             "try:\n"
+             f"    run_logged([sys.executable, '-c', {run!r}], {str(tmp_path)!r})\n"
+             "except KeyboardInterrupt:\n"
+             "    sys.exit(130)\n")
+    proc = subprocess.Popen([sys.executable, "-c", bench],
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    log = tmp_path / "console.log"
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and "running" not in (log.read_text() if log.exists() else ""):
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    assert proc.wait(timeout=10) == 130
+    assert "torn down" in log.read_text()

@@ -60,6 +60,7 @@ private:
 
   // Warm standbys (agent_services.cpp): one per warm_start node, also while it runs here.
   void keepStandbysReady();
+  void hurryStandby(const std::string& name, int pid);
   std::vector<std::string> standbyArgv(const NodeDecl& decl);
   std::string logFile(const std::string& node) const;  // <log_dir>/<name with '/' as '.'>.log
   // The name a node runs under on this scale (see instanceName): the supervisor keeps the

@@ -1,5 +1,5 @@
 """How the benches and root tests run processes: scripts/run_testbed.py once, in a session of
-its own with its console in a file and Ctrl-C passed on as one SIGINT (so that the run removes
+its own with its console in a file and Ctrl-C passed on as one SIGTERM (so that the run removes
 its test bed); the newest record.json below a run's directory; a node stopped as Ctrl-C would."""
 import glob
 import os
@@ -21,7 +21,7 @@ def interrupt_on_sigterm():
 
 def run_logged(argv: List[str], out_dir: str) -> int:
     """Runs argv with its output in out_dir/console.log; returns its exit code. A session of
-    its own: Ctrl-C reaches the bench only, which passes exactly one SIGINT on and waits for
+    its own: Ctrl-C reaches the bench only, which passes exactly one SIGTERM on and waits for
     the run's teardown (killing the run would leave its test bed behind)."""
     os.makedirs(out_dir, exist_ok=True)
     with open(os.path.join(out_dir, "console.log"), "wb") as log:
@@ -30,7 +30,10 @@ def run_logged(argv: List[str], out_dir: str) -> int:
         try:
             return proc.wait()
         except KeyboardInterrupt:
-            proc.send_signal(signal.SIGINT)
+            # SIGTERM, not SIGINT: a bench started in the background ignores SIGINT, and so
+            # does the run it starts (an ignored signal stays ignored across exec).
+            # run_testbed.py tears its test bed down on either.
+            proc.send_signal(signal.SIGTERM)
             _wait_through_interrupts(proc)
             raise
 

@@ -314,6 +314,11 @@ void AgentNode::onUplink(const ros::SteadyTimerEvent&)
       return;  // nothing sampled yet; the first sample carries the state
     applyUplink(last_status_.link);
     s = last_status_;
+    // The processes as they are now, not as last sampled: a start since then (a node brought
+    // home by this very link loss) replaced the record of the instance before it, and the
+    // old record, ended by the stop of a move, read as a crash of the new one to the decision
+    // node: it "restarted" a node that was starting (seen after link-loss returns, 'signal 9').
+    s.nodes = nodeProcesses();
   }
   status_pub_.publish(s);
 }
@@ -378,10 +383,10 @@ void AgentNode::onSample(const ros::SteadyTimerEvent&)
     s.memory_total_bytes = u.memory_total_bytes;
     s.memory_available_bytes = u.memory_available_bytes;
     s.sample_period_s = float(sampler_.periodSeconds());
-    s.nodes = nodeProcesses();
     s.topics = topics_->stats(s.header.stamp);
     s.link = link_->stats();
     applyUplink(s.link);
+    s.nodes = nodeProcesses();  // last, just before publishing: see onUplink
     last_status_ = s;
   }
   status_pub_.publish(s);

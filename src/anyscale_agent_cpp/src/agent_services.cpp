@@ -11,6 +11,7 @@
 
 #include "anyscale_agent_cpp/param_loader.h"
 #include "anyscale_agent_cpp/process_priority.h"
+#include "anyscale_agent_cpp/request_check.h"
 
 namespace anyscale_agent
 {
@@ -29,6 +30,15 @@ std::string join(const std::vector<std::string>& v)
   for (const auto& s : v)
     out += (out.empty() ? "" : ", ") + s;
   return out;
+}
+
+// Names from a request, quoted, at most 10 of them: an answer or log line stays short.
+std::string joinQuoted(const std::vector<std::string>& v)
+{
+  std::string out;
+  for (std::size_t i = 0; i < v.size() && i < 10; ++i)
+    out += (out.empty() ? "" : ", ") + quoted(v[i]);
+  return v.size() > 10 ? out + " and " + std::to_string(v.size() - 10) + " more" : out;
 }
 
 bool isPythonScript(const std::string& path)
@@ -51,7 +61,7 @@ bool runsHere(const std::optional<ProcessInfo>& node)
 }
 }  // namespace
 
-bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::StartNode::Response& res)
+void AgentNode::startNode(const anyscale_msgs::StartNode::Request& req, anyscale_msgs::StartNode::Response& res)
 {
   res.success = false;
   res.pid = 0;
@@ -61,22 +71,21 @@ bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::S
                              : nullptr;
   if (!decl)
   {
-    res.message = "refused: node '" + req.node + "' is not declared in the model " + model_path_ +
+    res.message = "refused: node " + quoted(req.node) + " is not declared in the model " + model_path_ +
                   " (declared: " + join(model_.names()) + ")";
-    ROS_WARN("start_node %s", res.message.c_str());
-    return true;
+    return;
   }
-  if (!std::isfinite(req.lease_s) || req.lease_s < 0.0f)
+  if (const std::string why = checkSeconds("lease_s", req.lease_s, true, kMaxLeaseS); !why.empty())
   {
-    res.message = "refused: lease_s must be >= 0 seconds (0 = no lease), got " + std::to_string(req.lease_s);
-    return true;
+    res.message = "refused: " + why + " (0 = no lease)";
+    return;
   }
   std::map<std::string, std::string> overrides;
   for (const auto& kv : req.param_overrides)
     if (!overrides.emplace(kv.key, kv.value).second)
     {
-      res.message = "refused: param override '" + kv.key + "' given twice";
-      return true;
+      res.message = "refused: param override " + quoted(kv.key) + " given twice";
+      return;
     }
   const std::string name = qualified(decl->name);
   const PackageLocator locate = [this](const std::string& p) { return locatePackage(p); };
@@ -96,7 +105,7 @@ bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::S
       {
         res.message = "refused: " + name + " is being stopped here and did not end (pid " +
                       std::to_string(stopping->pid) + ")";
-        return true;
+        return;
       }
       ROS_INFO("start of %s waited for its previous instance (pid %d) to end", name.c_str(), stopping->pid);
     }
@@ -109,15 +118,14 @@ bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::S
       res.success = true;
       res.pid = running->pid;
       res.message = name + " is already running here (pid " + std::to_string(running->pid) + ")";
-      return true;
+      return;
     }
     setNodeParams(rosName(name).substr(1), decl->params, overrides, locate, clear_params_, decl->name);
   }
   catch (const ModelError& e)
   {
     res.message = "refused: " + name + ": " + e.what();
-    ROS_WARN("start_node %s", res.message.c_str());
-    return true;
+    return;
   }
   const std::string log_file = logFile(decl->name);
   std::string error;
@@ -130,7 +138,7 @@ bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::S
   {
     res.message = "failed: " + name + ": " + error;
     ROS_ERROR("start_node %s", res.message.c_str());
-    return true;
+    return;
   }
   setStartPriority(name, pid, decl->nice);
   {
@@ -143,15 +151,21 @@ bool AgentNode::onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::S
                 std::to_string(pid) + ") from " + argv[0] + "; log " + log_file +
                 (req.lease_s > 0.0f ? "; lease " + std::to_string(req.lease_s) + " s" : "");
   ROS_INFO("%s", res.message.c_str());
-  return true;
+  return;
 }
 
-bool AgentNode::onStop(anyscale_msgs::StopNode::Request& req, anyscale_msgs::StopNode::Response& res)
+void AgentNode::stopNode(const anyscale_msgs::StopNode::Request& req, anyscale_msgs::StopNode::Response& res)
 {
-  const std::string name = qualified(req.node);
   res.success = false;
   res.exit_code = -1;
   res.exit_signal = 0;
+  if (const std::string why = checkSeconds("sigint_timeout_s", req.sigint_timeout_s, true, kMaxSigintTimeoutS);
+      !why.empty())
+  {
+    res.message = "refused: " + why;
+    return;
+  }
+  const std::string name = qualified(req.node);
   {
     std::lock_guard<std::mutex> lock(leases_mutex_);
     leases_.remove(name);
@@ -159,19 +173,14 @@ bool AgentNode::onStop(anyscale_msgs::StopNode::Request& req, anyscale_msgs::Sto
   const auto before = supervisor_.info(name);
   if (!before || before->pid == 0)
   {
-    res.message = name + " is not running on scale " + scale_ +
+    res.message = quoted(name) + " is not running on scale " + scale_ +
                   (before ? " (it " + std::string(toString(before->state)) + ")" : "");
     if (before)
     {
       res.exit_code = before->exit_code;
       res.exit_signal = before->exit_signal;
     }
-    return true;
-  }
-  if (!std::isfinite(req.sigint_timeout_s) || req.sigint_timeout_s < 0.0f)
-  {
-    res.message = "refused: sigint_timeout_s must be >= 0 seconds, got " + std::to_string(req.sigint_timeout_s);
-    return true;
+    return;
   }
   const auto stop_began = std::chrono::steady_clock::now();
   supervisor_.stop(name, ProcState::Exited, req.sigint_timeout_s);
@@ -179,7 +188,7 @@ bool AgentNode::onStop(anyscale_msgs::StopNode::Request& req, anyscale_msgs::Sto
   {
     res.success = true;
     res.message = "stopping " + name + " (pid " + std::to_string(before->pid) + ")";
-    return true;
+    return;
   }
   const auto& o = supervisor_.options();
   const double limit = o.sigint_timeout_s + o.sigterm_timeout_s + 5.0;
@@ -212,18 +221,18 @@ bool AgentNode::onStop(anyscale_msgs::StopNode::Request& req, anyscale_msgs::Sto
              left_master                  ? ": killed once it had left the master" :
              res.exit_signal == SIGKILL ? ": killed after the SIGINT grace" :
                                           "");
-  return true;
+  return;
 }
 
-bool AgentNode::onRenew(anyscale_msgs::RenewLeases::Request& req, anyscale_msgs::RenewLeases::Response& res)
+void AgentNode::renewLeases(const anyscale_msgs::RenewLeases::Request& req, anyscale_msgs::RenewLeases::Response& res)
 {
   res.success = true;
-  if (!std::isfinite(req.lease_s) || req.lease_s <= 0.0f)
+  if (const std::string why = checkSeconds("lease_s", req.lease_s, false, kMaxLeaseS); !why.empty())
   {
     res.success = false;
-    res.message = "lease_s must be > 0 seconds, got " + std::to_string(req.lease_s);
+    res.message = "refused: " + why;
     res.not_running = req.nodes;
-    return true;
+    return;
   }
   std::vector<std::string> without_lease;
   const double now = steadyNow();
@@ -242,10 +251,10 @@ bool AgentNode::onRenew(anyscale_msgs::RenewLeases::Request& req, anyscale_msgs:
       without_lease.push_back(node);  // runs without a lease; renewing must not impose one
     }
   }
-  res.message = res.success ? "renewed" : "not running here: " + join(res.not_running);
+  res.message = res.success ? "renewed" : "not running here: " + joinQuoted(res.not_running);
   if (!without_lease.empty())
-    res.message += "; running without a lease, unchanged: " + join(without_lease);
-  return true;
+    res.message += "; running without a lease, unchanged: " + joinQuoted(without_lease);
+  return;
 }
 
 std::string AgentNode::logFile(const std::string& node) const
@@ -335,22 +344,6 @@ void AgentNode::hurryStandby(const std::string& name, int pid)
              name.c_str(), pid);
   else
     ROS_WARN_THROTTLE(30.0, "warm standby of %s: %s", name.c_str(), error.c_str());
-}
-
-bool AgentNode::onList(anyscale_msgs::ListNodes::Request&, anyscale_msgs::ListNodes::Response& res)
-{
-  std::lock_guard<std::mutex> lock(sample_mutex_);
-  res.nodes = nodeProcesses();
-  return true;
-}
-
-bool AgentNode::onSetWatched(anyscale_msgs::SetWatchedTopics::Request& req,
-                             anyscale_msgs::SetWatchedTopics::Response& res)
-{
-  std::string error;
-  res.success = topics_->setWatched(req.topics, &error);
-  res.message = res.success ? "watching " + std::to_string(req.topics.size()) + " topics where a local node subscribes" : error;
-  return true;
 }
 
 }  // namespace anyscale_agent

@@ -142,6 +142,11 @@ NodeModel NodeModel::parse(const YAML::Node& root, const std::string& source)
     {
       if (!params.IsMap())
         throw ModelError(where + ": launch.params must be a map {name: value}");
+      // Checked here, not at the first start: a key that is a list made the start's
+      // conversion throw a YAML exception out of the start_node service.
+      for (const auto& kv : params)
+        if (!kv.first.IsScalar() || !isValidNodeName(kv.first.Scalar()))
+          throw ModelError(where + ": launch.params keys must be parameter names (letters, digits, '_')");
       d.params = params;
     }
     if (const YAML::Node warm = launch["warm_start"])

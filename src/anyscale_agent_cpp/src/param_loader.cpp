@@ -5,24 +5,12 @@
 
 #include <vector>
 
+#include "anyscale_agent_cpp/request_check.h"
+
 namespace anyscale_agent
 {
 namespace
 {
-// YAML 1.1 booleans as PyYAML (and so roslaunch) reads them.
-bool parseBool(const std::string& s, bool* out)
-{
-  static const std::vector<std::string> yes{"true", "True", "TRUE", "yes", "Yes", "YES", "on", "On", "ON"};
-  static const std::vector<std::string> no{"false", "False", "FALSE", "no", "No", "NO", "off", "Off", "OFF"};
-  for (const auto& y : yes)
-    if (s == y)
-      return *out = true, true;
-  for (const auto& n : no)
-    if (s == n)
-      return *out = false, true;
-  return false;
-}
-
 XmlRpc::XmlRpcValue scalar(const YAML::Node& node, const PackageLocator& locate)
 {
   const std::string text = node.Scalar();
@@ -49,8 +37,11 @@ XmlRpc::XmlRpcValue scalar(const YAML::Node& node, const PackageLocator& locate)
     catch (const std::exception&)
     {
     }
+    double special;
+    if (parseYamlSpecialFloat(text, &special))
+      return XmlRpc::XmlRpcValue(special);
     bool b;
-    if (parseBool(text, &b))
+    if (parseYamlBool(text, &b))
       return XmlRpc::XmlRpcValue(b);
   }
   return XmlRpc::XmlRpcValue(substituteFind(text, locate));
@@ -99,7 +90,9 @@ void setNodeParams(const std::string& node_name, const YAML::Node& params,
   for (const auto& [key, text] : overrides)
   {
     if (key.empty() || key[0] == '/' || key[0] == '~' || !isValidNodeName(key))
-      throw ModelError("param override '" + key + "': must be a name relative to the node, e.g. initial_pose_x");
+      throw ModelError("param override " + quoted(key) + ": must be a name relative to the node, e.g. initial_pose_x");
+    if (const std::string why = checkOverrideValue(key, text); !why.empty())
+      throw ModelError(why);
     YAML::Node parsed;
     try
     {

@@ -5,6 +5,8 @@
 
 #include <limits>
 
+#include "anyscale_agent_cpp/request_check.h"
+
 namespace anyscale_agent
 {
 
@@ -35,7 +37,8 @@ bool TopicWatcher::setWatched(const std::vector<std::string>& topics, std::strin
     if (t.empty() || t[0] != '/' || !ros::names::validate(t, why))
     {
       if (error)
-        *error = "topic '" + t + "' is not a valid resolved name (e.g. /scan)" + (why.empty() ? "" : ": " + why);
+        *error = "topic " + quoted(t) + " is not a valid resolved name (e.g. /scan)" +
+                 (why.empty() ? "" : ": " + quoted(why, 200));
       return false;
     }
     resolved.push_back(t);

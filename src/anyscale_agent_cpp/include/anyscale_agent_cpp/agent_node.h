@@ -41,12 +41,20 @@ public:
   void spin();
 
 private:
-  // Services (agent_services.cpp).
-  bool onStart(anyscale_msgs::StartNode::Request& req, anyscale_msgs::StartNode::Response& res);
-  bool onStop(anyscale_msgs::StopNode::Request& req, anyscale_msgs::StopNode::Response& res);
-  bool onRenew(anyscale_msgs::RenewLeases::Request& req, anyscale_msgs::RenewLeases::Response& res);
+  // Service entry points (agent_requests.cpp): each answer that refuses a request is logged
+  // with the caller's node name (ROS 1 has no authentication; the name is what it says).
+  template <class Srv>
+  using Event = ros::ServiceEvent<typename Srv::Request, typename Srv::Response>;
+  bool onStart(Event<anyscale_msgs::StartNode>& event);
+  bool onStop(Event<anyscale_msgs::StopNode>& event);
+  bool onRenew(Event<anyscale_msgs::RenewLeases>& event);
   bool onList(anyscale_msgs::ListNodes::Request& req, anyscale_msgs::ListNodes::Response& res);
-  bool onSetWatched(anyscale_msgs::SetWatchedTopics::Request& req, anyscale_msgs::SetWatchedTopics::Response& res);
+  bool onSetWatched(Event<anyscale_msgs::SetWatchedTopics>& event);
+  // What they do (agent_services.cpp).
+  void startNode(const anyscale_msgs::StartNode::Request& req, anyscale_msgs::StartNode::Response& res);
+  void stopNode(const anyscale_msgs::StopNode::Request& req, anyscale_msgs::StopNode::Response& res);
+  void renewLeases(const anyscale_msgs::RenewLeases::Request& req, anyscale_msgs::RenewLeases::Response& res);
+  void setWatched(const anyscale_msgs::SetWatchedTopics::Request& req, anyscale_msgs::SetWatchedTopics::Response& res);
 
   // Timers (agent_node.cpp).
   void onSample(const ros::SteadyTimerEvent&);      // /proc, topics, link -> /anyscale/status

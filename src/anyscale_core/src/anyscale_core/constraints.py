@@ -9,7 +9,7 @@ import numpy as np
 
 from .characterisation import Characterisation
 from .model import ModelError, SystemModel
-from .model_loader import read_yaml
+from .model_loader import is_finite_number, read_yaml
 
 # A scale is full at 100 % of its CPU (the unit of cpu_usage and scale_load).
 CPU_CAPACITY_PERCENT = 100.0
@@ -55,8 +55,7 @@ def parse_state(data: Any, model: SystemModel, source: str = "<state>") -> Dynam
             raise ModelError(source, str(key), "unknown key (expected one of: bandwidth_mbps, "
                                                "scale_load, link_up)")
     bandwidth = data.get("bandwidth_mbps", model.network.max_bandwidth_mbps)
-    if isinstance(bandwidth, bool) or not isinstance(bandwidth, (int, float)) \
-            or not math.isfinite(bandwidth) or bandwidth < 0:
+    if not is_finite_number(bandwidth) or bandwidth < 0:
         raise ModelError(source, "bandwidth_mbps", f"expected a number >= 0, got {bandwidth!r}")
     load = _per_scale(data.get("scale_load"), model, source, "scale_load",
                       lambda v: isinstance(v, (int, float)) and not isinstance(v, bool)

@@ -81,15 +81,22 @@ def read_params(get=rospy.get_param) -> NodeParams:
                       int(number("handover_messages", 3, 1)))
 
 
+def prepare_decision(model_path: str, allocator_name: str):
+    """The model, its characterisation and the allocator the decision node starts from, with no
+    ROS involved (tested by fuzzing); raises only ModelError or ParamError, which main() turns
+    into one FATAL line."""
+    model = load_model(model_path)
+    try:
+        allocator = make_allocator(allocator_name)
+    except ValueError as e:
+        raise ParamError(f"~allocator: {e}") from None
+    return model, characterise(model), allocator
+
+
 class DecisionNode(AgentActions):
     def __init__(self, params: NodeParams):
         self.params = params
-        self.model = load_model(params.model)
-        try:
-            allocator = make_allocator(params.allocator)
-        except ValueError as e:
-            raise ParamError(f"~allocator: {e}") from None
-        self.ch = characterise(self.model)
+        self.model, self.ch, allocator = prepare_decision(params.model, params.allocator)
         self.master = self.model.master.name
         self.engine = DecisionEngine(self.ch, allocator, params.engine, time.monotonic())
         self.lock = threading.Lock()          # the engine and the reports, across threads

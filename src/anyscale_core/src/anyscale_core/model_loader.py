@@ -26,16 +26,33 @@ def load_model(path: str) -> SystemModel:
 
 
 def read_yaml(path: str) -> Any:
+    """The YAML tree of a model or state file; every way a file can be unreadable is a
+    one-line ModelError (the CLI prints one line, never a traceback)."""
     try:
         with open(path, encoding="utf-8") as f:
             return yaml.safe_load(f)
     except OSError as e:
         raise ModelError(path, "", f"cannot read: {e.strerror}") from None
+    except UnicodeDecodeError as e:
+        raise ModelError(path, "", f"not UTF-8 text: byte 0x{e.object[e.start]:02x} at offset "
+                                   f"{e.start}") from None
+    except RecursionError:
+        raise ModelError(path, "", "invalid YAML: nested too deeply") from None
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
-        problem = getattr(e, "problem", None) or str(e)
+        problem = " ".join((getattr(e, "problem", None) or str(e)).split())
         raise ModelError(path, "", f"invalid YAML: {where}{problem}") from None
+
+
+def is_finite_number(value: Any) -> bool:
+    """An int or float (not a bool) that is finite as a float: 10**400 is not."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False
 
 
 class _Reader:
@@ -64,7 +81,7 @@ class _Reader:
 
     def number(self, value: Any, key: str, minimum: Optional[float] = None,
                strictly_above: Optional[float] = None, maximum: Optional[float] = None) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        if not is_finite_number(value):
             self.fail(key, f"expected a finite number, got {_describe(value)}")
         if minimum is not None and value < minimum:
             self.fail(key, f"expected a number >= {minimum:g}, got {value:g}")
@@ -278,6 +295,9 @@ def _parse_connections(r: _Reader, value: Any, node_names: set) -> List[Connecti
             if name not in node_names:
                 r.fail(f"{key}.{end}", f"unknown node '{name}'")
             ends.append(name)
+        if ends[0] == ends[1]:
+            r.fail(f"{key}.subscriber", f"'{ends[0]}' is the publisher too: a connection joins "
+                                        "two different nodes")
         topic = r.string(r.require(d, "topic", key), f"{key}.topic", _TOPIC, "a topic name")
         if (ends[0], ends[1], topic) in seen:
             r.fail(key, f"duplicate connection {ends[0]} -> {ends[1]} on {topic}")

@@ -1,0 +1,73 @@
+// The agent's service entry points: who asked, the answer, and a log line naming the caller for
+// every refusal (an attacker on the network is seen by the node name it gives).
+#include "anyscale_agent_cpp/agent_node.h"
+
+#include "anyscale_agent_cpp/request_check.h"
+
+namespace anyscale_agent
+{
+namespace
+{
+// Refusals are answered and logged; other answers (a node not running here, a failed start)
+// are the decision node's daily business and logged where they happen.
+template <class Event>
+void logRefusal(const char* service, Event& event)
+{
+  const std::string& message = event.getResponse().message;
+  if (message.rfind("refused", 0) == 0)
+    ROS_WARN("%s from caller %s: %s", service, quoted(event.getCallerName()).c_str(), message.c_str());
+}
+}  // namespace
+
+bool AgentNode::onStart(Event<anyscale_msgs::StartNode>& event)
+{
+  startNode(event.getRequest(), event.getResponse());
+  logRefusal("start_node", event);
+  return true;
+}
+
+bool AgentNode::onStop(Event<anyscale_msgs::StopNode>& event)
+{
+  stopNode(event.getRequest(), event.getResponse());
+  logRefusal("stop_node", event);
+  return true;
+}
+
+bool AgentNode::onRenew(Event<anyscale_msgs::RenewLeases>& event)
+{
+  renewLeases(event.getRequest(), event.getResponse());
+  logRefusal("renew_leases", event);
+  return true;
+}
+
+bool AgentNode::onList(anyscale_msgs::ListNodes::Request&, anyscale_msgs::ListNodes::Response& res)
+{
+  std::lock_guard<std::mutex> lock(sample_mutex_);
+  res.nodes = nodeProcesses();
+  return true;
+}
+
+bool AgentNode::onSetWatched(Event<anyscale_msgs::SetWatchedTopics>& event)
+{
+  setWatched(event.getRequest(), event.getResponse());
+  logRefusal("set_watched_topics", event);
+  return true;
+}
+
+void AgentNode::setWatched(const anyscale_msgs::SetWatchedTopics::Request& req,
+                           anyscale_msgs::SetWatchedTopics::Response& res)
+{
+  res.success = false;
+  if (req.topics.size() > kMaxWatchedTopics)
+  {
+    res.message = "refused: " + std::to_string(req.topics.size()) + " topics, at most " +
+                  std::to_string(kMaxWatchedTopics) + " may be watched";
+    return;
+  }
+  std::string error;
+  res.success = topics_->setWatched(req.topics, &error);
+  res.message = res.success ? "watching " + std::to_string(req.topics.size()) + " topics where a local node subscribes"
+                            : "refused: " + error;
+}
+
+}  // namespace anyscale_agent

@@ -180,7 +180,8 @@ def getter(**params):
 def test_node_params_defaults_and_layout():
     p = read_shaper_params(getter(access_point_x=24, access_point_y=34.5))
     assert p.mode == "coverage" and p.access_point_xy == (24.0, 34.5)
-    assert p.rate_hz == 5.0 and p.burst_kbit == 32 and p.dry_run is False
+    assert p.rate_hz == 5.0 and p.burst_kbit == 32 and p.dry_run is False and p.seed == 0
+    assert read_shaper_params(getter(access_point_x=1, access_point_y=1, seed=3)).seed == 3
     assert (p.layout.robot.namespace, p.layout.robot.interface) == ("anyscale_robot",
                                                                     "asv_robot")
     assert (p.layout.laptop.namespace, p.layout.laptop.interface) == ("anyscale_laptop",
@@ -200,6 +201,9 @@ def test_node_params_defaults_and_layout():
     (dict(access_point_x=1, access_point_y=1, burst_kbit=2.5), r"~burst_kbit: expected an int"),
     (dict(access_point_x=1, access_point_y=1, dry_run="yes"), r"~dry_run: expected true or"),
     (dict(access_point_x=1, access_point_y=1, robot_namespace="a b"), r"~robot_namespace"),
+    (dict(access_point_x=1, access_point_y=1, seed=-1), r"~seed: expected an integer >= 0"),
+    (dict(access_point_x=1, access_point_y=1, seed=1.5), r"~seed: expected an integer >= 0"),
+    (dict(mode="schedule", schedule=[[0, 3]], seed=2), r"~seed: varies the coverage model"),
 ])
 def test_bad_node_params_name_the_parameter(params, message):
     with pytest.raises(ValueError, match=message):

@@ -7,7 +7,7 @@ import pytest
 
 from anyscale_testbed import evaluation_run
 from anyscale_testbed.evaluation_figures import AMCL_ON_LAPTOP, BOTH_ON_ROBOT
-from anyscale_testbed.evaluation_plots import path_segments
+from anyscale_nav_demo.results import configuration_runs
 from anyscale_testbed.evaluation_run import (amcl_bandwidth_mbps, evaluation_plan, parse_args,
                                              parse_seeds, select_runs)
 from test_evaluation_table import record
@@ -54,7 +54,7 @@ def test_amcl_moves_its_scans_and_its_pose_over_the_link():
 
 def test_path_segments_keep_the_line_whole():
     xy = np.array([[0, 0], [1, 0], [2, 0], [3, 0], [4, 0]], dtype=float)
-    runs = path_segments(xy, ["a", "a", "b", "b", "a"])
+    runs = configuration_runs(xy, ["a", "a", "b", "b", "a"])
     assert [c for c, _ in runs] == ["a", "b", "a"]
     assert [p[:, 0].tolist() for _, p in runs] == [[0, 1], [1, 2, 3], [3, 4]]
 

@@ -22,7 +22,10 @@ from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from anyscale_nav_demo.results import mean_abs_angular_velocity_deg
+from anyscale_nav_demo.results import (AMCL_ON_LAPTOP, AR_ON_LAPTOP,  # noqa: F401 (re-export)
+                                       BOTH_ON_LAPTOP, BOTH_ON_ROBOT, CONFIGURATION_COLOURS,
+                                       CONFIGURATIONS, configuration_of,
+                                       mean_abs_angular_velocity_deg)
 
 from .testbed_record import TestbedRecord, mapping_at, pose_errors
 from .tolerance_report import RunRow, path_time, run_row
@@ -32,25 +35,6 @@ from .tolerance_report import RunRow, path_time, run_row
 # minimum 2 Hz on the robot, 0.2 m/s (the paper's two speeds).
 FAST_MPS = 0.4
 SLOW_MPS = 0.2
-
-# Fig. 5's four configurations (the paper's colours), by where AMCL and AR recognition run.
-AMCL_ON_LAPTOP = "AMCL on laptop"           # green
-BOTH_ON_ROBOT = "both on robot"             # red
-BOTH_ON_LAPTOP = "both on laptop"           # blue
-AR_ON_LAPTOP = "AR only on laptop"          # yellow
-CONFIGURATIONS = (AMCL_ON_LAPTOP, BOTH_ON_ROBOT, BOTH_ON_LAPTOP, AR_ON_LAPTOP)
-CONFIGURATION_COLOURS = {AMCL_ON_LAPTOP: "#1fa833", BOTH_ON_ROBOT: "#d91a1a",
-                         BOTH_ON_LAPTOP: "#2659f2", AR_ON_LAPTOP: "#f2d91a"}
-
-
-def configuration_of(mapping: Mapping[str, str], master: str = "robot", amcl: str = "amcl",
-                     ar: str = "ar_recognition") -> str:
-    """Which of Fig. 5's configurations a mapping {node: scale} is (a node the mapping does
-    not name runs on the master: the start)."""
-    amcl_out = mapping.get(amcl, master) != master
-    ar_out = mapping.get(ar, master) != master
-    return {(True, False): AMCL_ON_LAPTOP, (False, False): BOTH_ON_ROBOT,
-            (True, True): BOTH_ON_LAPTOP, (False, True): AR_ON_LAPTOP}[(amcl_out, ar_out)]
 
 
 def path_window(rec: TestbedRecord) -> Tuple[float, float]:

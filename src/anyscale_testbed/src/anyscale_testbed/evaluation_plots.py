@@ -7,7 +7,9 @@ from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
-from .evaluation_figures import CONFIGURATION_COLOURS, CONFIGURATIONS
+from anyscale_nav_demo.results import (CONFIGURATION_COLOURS, CONFIGURATIONS,
+                                       configuration_runs)
+
 from .link_shaper import FULL_SCALE_MBPS, CoverageGrid
 
 
@@ -21,17 +23,6 @@ def _pyplot():
 def map_image(occupied: np.ndarray, unknown: np.ndarray) -> np.ndarray:
     """Grey levels of a map for imshow: walls black, unknown light grey, free white."""
     return np.where(occupied, 0.0, np.where(unknown, 0.75, 1.0))
-
-
-def path_segments(xy: np.ndarray, configurations: Sequence[str]):
-    """Consecutive runs of one configuration along the path: [(configuration, (M, 2) points)],
-    each run sharing its first point with the end of the previous one so the line is whole."""
-    runs, start = [], 0
-    for i in range(1, len(configurations) + 1):
-        if i == len(configurations) or configurations[i] != configurations[start]:
-            runs.append((configurations[start], xy[max(0, start - 1):i]))
-            start = i
-    return runs
 
 
 def draw_fig5(png_path: str, occupied: np.ndarray, unknown: np.ndarray, resolution: float,
@@ -64,7 +55,7 @@ def draw_fig5(png_path: str, occupied: np.ndarray, unknown: np.ndarray, resoluti
             ax.imshow(shown, cmap="Purples", origin="lower", vmin=-0.3 * FULL_SCALE_MBPS,
                       vmax=FULL_SCALE_MBPS, alpha=0.5, extent=(cx, cx + cw * coverage.resolution,
                                           cy, cy + ch * coverage.resolution))
-        for configuration, points in path_segments(np.asarray(xy), configurations):
+        for configuration, points in configuration_runs(xy, configurations):
             ax.plot(points[:, 0], points[:, 1], "-", lw=2.5,
                     color=CONFIGURATION_COLOURS[configuration])
         ax.set_title(title)

@@ -180,7 +180,8 @@ def getter(**params):
 def test_node_params_defaults_and_layout():
     p = read_shaper_params(getter(access_point_x=24, access_point_y=34.5))
     assert p.mode == "coverage" and p.access_point_xy == (24.0, 34.5)
-    assert p.rate_hz == 5.0 and p.burst_kbit == 32 and p.dry_run is False
+    assert p.rate_hz == 5.0 and p.burst_kbit == 32 and p.dry_run is False and p.seed == 0
+    assert read_shaper_params(getter(access_point_x=1, access_point_y=1, seed=3)).seed == 3
     assert (p.layout.robot.namespace, p.layout.robot.interface) == ("anyscale_robot",
                                                                     "asv_robot")
     assert (p.layout.laptop.namespace, p.layout.laptop.interface) == ("anyscale_laptop",
@@ -200,6 +201,9 @@ def test_node_params_defaults_and_layout():
     (dict(access_point_x=1, access_point_y=1, burst_kbit=2.5), r"~burst_kbit: expected an int"),
     (dict(access_point_x=1, access_point_y=1, dry_run="yes"), r"~dry_run: expected true or"),
     (dict(access_point_x=1, access_point_y=1, robot_namespace="a b"), r"~robot_namespace"),
+    (dict(access_point_x=1, access_point_y=1, seed=-1), r"~seed: expected an integer >= 0"),
+    (dict(access_point_x=1, access_point_y=1, seed=1.5), r"~seed: expected an integer >= 0"),
+    (dict(mode="schedule", schedule=[[0, 3]], seed=2), r"~seed: varies the coverage model"),
 ])
 def test_bad_node_params_name_the_parameter(params, message):
     with pytest.raises(ValueError, match=message):
@@ -229,11 +233,11 @@ def test_legs_through_walls_go_round_the_corner():
     assert corners == [(1, 1), (18, 1), (18, 8), (18, 1), (1, 1)]
 
 
-def office_shares():
-    """Coverage shares of the office loop with the access point of the shipped config."""
-    with open(os.path.join(NAV_DEMO, "config", "wifi_office_floor.yaml")) as f:
+def office_shares(world_name="office_floor"):
+    """Coverage shares of a world's loop with the access point of its shipped config."""
+    with open(os.path.join(NAV_DEMO, "config", f"wifi_{world_name}.yaml")) as f:
         wifi = yaml.safe_load(f)
-    with open(os.path.join(NAV_DEMO, "maps", "office_floor_world.yaml")) as f:
+    with open(os.path.join(NAV_DEMO, "maps", f"{world_name}_world.yaml")) as f:
         world = yaml.safe_load(f)
     occ = load_map(os.path.join(NAV_DEMO, "maps", world["map"]))
     model = coverage_model_from_grid(occ.width, occ.height, occ.resolution, occ.origin[0],
@@ -258,3 +262,10 @@ def test_office_access_point_covers_45_to_65_percent_of_the_loop():
     # The figures quoted in the config's comment.
     assert corridors["covered"] == pytest.approx(0.525, abs=0.0005)
     assert straight["covered"] == pytest.approx(0.594, abs=0.0005)
+
+
+def test_small_loop_access_point_covers_about_half_the_loop_enough_for_amcl_only():
+    wifi, _, corridors, _ = office_shares("small_loop")
+    assert wifi["mode"] == "coverage"
+    assert corridors["covered"] == pytest.approx(0.471, abs=0.0005)   # quoted in the config
+    assert corridors[">=3"] == corridors["covered"] and corridors[">=12"] == 0.0

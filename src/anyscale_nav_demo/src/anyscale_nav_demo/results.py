@@ -1,8 +1,52 @@
-"""Run results: time to complete, path length, localisation error, mean angular velocity."""
+"""Run results: time to complete, path length, localisation error, mean angular velocity, and
+the paper's Fig. 5 configurations (where AMCL and AR recognition run) along the path."""
+import bisect
 import csv
 import math
 
 import numpy as np
+
+# Fig. 5's four configurations (the paper's colours), by where the demo's two migratable nodes
+# run: AMCL and AR recognition, each on the robot (the master scale) or away from it.
+AMCL_ON_LAPTOP = "AMCL on laptop"           # green
+BOTH_ON_ROBOT = "both on robot"             # red
+BOTH_ON_LAPTOP = "both on laptop"           # blue
+AR_ON_LAPTOP = "AR only on laptop"          # yellow
+CONFIGURATIONS = (AMCL_ON_LAPTOP, BOTH_ON_ROBOT, BOTH_ON_LAPTOP, AR_ON_LAPTOP)
+CONFIGURATION_COLOURS = {AMCL_ON_LAPTOP: "#1fa833", BOTH_ON_ROBOT: "#d91a1a",
+                         BOTH_ON_LAPTOP: "#2659f2", AR_ON_LAPTOP: "#f2d91a"}
+
+
+def configuration_of(mapping, master="robot", amcl="amcl", ar="ar_recognition"):
+    """Which of Fig. 5's configurations a mapping {node: scale} is (a node the mapping does
+    not name runs on the master: the start)."""
+    amcl_out = mapping.get(amcl, master) != master
+    ar_out = mapping.get(ar, master) != master
+    return {(True, False): AMCL_ON_LAPTOP, (False, False): BOTH_ON_ROBOT,
+            (True, True): BOTH_ON_LAPTOP, (False, True): AR_ON_LAPTOP}[(amcl_out, ar_out)]
+
+
+def configurations_at(times, changes, master="robot"):
+    """The configuration at each time from `changes`, [(t, mapping)] in time order (before the
+    first change every node is on the master)."""
+    starts = [t for t, _ in changes]
+    out = []
+    for t in times:
+        i = bisect.bisect_right(starts, t) - 1
+        out.append(configuration_of(changes[i][1] if i >= 0 else {}, master))
+    return out
+
+
+def configuration_runs(xy, configurations):
+    """Consecutive runs of one configuration along a path: [(configuration, (M, 2) points)],
+    each run sharing its first point with the end of the previous one so the line is whole."""
+    xy = np.asarray(xy, dtype=float)
+    runs, start = [], 0
+    for i in range(1, len(configurations) + 1):
+        if i == len(configurations) or configurations[i] != configurations[start]:
+            runs.append((configurations[start], xy[max(0, start - 1):i]))
+            start = i
+    return runs
 
 
 def path_length(xy):
@@ -51,8 +95,9 @@ def write_csv(path, rows, header):
         w.writerows(rows)
 
 
-def plot_path(png_path, occ_map, truth, estimate, title=""):
-    """PNG of the true and estimated paths over the map."""
+def plot_path(png_path, occ_map, truth, estimate, title="", configurations=None):
+    """PNG of the true and estimated paths over the map; with `configurations` (one per truth
+    row, see configurations_at) the true path is coloured by Fig. 5's configuration."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -63,7 +108,14 @@ def plot_path(png_path, occ_map, truth, estimate, title=""):
     ax.imshow(img, cmap="gray", origin="lower", vmin=0, vmax=1,
               extent=(x0, x0 + w * occ_map.resolution, y0, y0 + h * occ_map.resolution))
     truth, estimate = np.asarray(truth), np.asarray(estimate)
-    if len(truth):
+    if len(truth) and configurations:
+        shown = set()
+        for configuration, points in configuration_runs(truth[:, 1:3], configurations):
+            ax.plot(points[:, 0], points[:, 1], "-", lw=1.5,
+                    color=CONFIGURATION_COLOURS[configuration],
+                    label=None if configuration in shown else f"ground truth, {configuration}")
+            shown.add(configuration)
+    elif len(truth):
         ax.plot(truth[:, 1], truth[:, 2], "g-", lw=1.5, label="ground truth")
     if len(estimate):
         ax.plot(estimate[:, 1], estimate[:, 2], "r--", lw=1.0, label="EKF estimate")

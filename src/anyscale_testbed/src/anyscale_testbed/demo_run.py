@@ -82,6 +82,9 @@ def parse_args(argv, default_out: str):
                         "--schedule over time; unshaped: no shaping at all")
     p.add_argument("--schedule", default="[[0, 27]]",
                    help="[[t_s, Mbit/s], ...] for --link schedule; 0 Mbit/s = link down")
+    p.add_argument("--seed", type=int, default=0, metavar="N",
+                   help="--link coverage: seeded shadowing and interference episodes on the WiFi "
+                        "model (wifi_variation.py); 0 (default) = the deterministic model")
     p.add_argument("--start-goal", type=int, default=None, metavar="K",
                    help="start at goal K of the world's goal list (0 = the first) and do the "
                         "loop from there, round to goal K (default: the world's start)")
@@ -108,6 +111,10 @@ def parse_args(argv, default_out: str):
             isinstance(s, list) and len(s) == 2 for s in schedule)
     except (yaml.YAMLError, AssertionError):
         p.error(f"--schedule: expected [[t_s, Mbit/s], ...], got {args.schedule!r}")
+    if args.seed < 0:
+        p.error(f"--seed: expected an integer >= 0, got {args.seed}")
+    if args.seed and args.link != "coverage":
+        p.error("--seed varies the coverage model: it needs --link coverage")
     return args
 
 
@@ -133,10 +140,12 @@ def main(default_out: str, argv=None) -> int:
 
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     start = "" if args.start_goal is None else f"-goal{args.start_goal}"
-    run_dir = os.path.abspath(os.path.join(args.out, f"{args.world}{start}-{link}-{stamp}"))
+    seed = f"-seed{args.seed}" if args.seed and link == "coverage" else ""
+    run_dir = os.path.abspath(os.path.join(args.out,
+                                           f"{args.world}{start}-{link}{seed}-{stamp}"))
     record = os.path.join(run_dir, "record.json")
     bed = LoopbackBed() if loopback else NamespaceBed(layout_with_cpu(robot_cpu, laptop_cpu))
-    print(PREFIX + f"world {args.world}, link {link}"
+    print(PREFIX + f"world {args.world}, link {link}" + (f" seed {args.seed}" if seed else "")
           + ("" if loopback else f", CPU quota robot {robot_cpu:g} / laptop {laptop_cpu:g} cores")
           + f"; logs and results in {run_dir}")
 
@@ -150,6 +159,7 @@ def main(default_out: str, argv=None) -> int:
                     "anyscale_testbed", "testbed_world.launch", f"world:={args.world}",
                     f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}", f"link:={link}",
                     f"schedule:={json.dumps(yaml.safe_load(args.schedule))}",
+                    f"seed:={args.seed}",
                     f"record_path:={record}", f"results_dir:={os.path.join(run_dir, 'nav')}",
                     f"duration_s:={args.duration}", f"rviz:={str(args.rviz).lower()}"],
                 cpu_quota=False, wait_for_master=False, echo=echo_monitor_lines)

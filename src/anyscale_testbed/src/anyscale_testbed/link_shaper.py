@@ -235,6 +235,7 @@ class ShaperParams:
     layout: TwoScaleLayout
     burst_kbit: int
     dry_run: bool
+    seed: int = 0       # coverage mode: 0 = the deterministic model, else wifi_variation's
 
 
 def read_shaper_params(get: Callable[[str, object], object]) -> ShaperParams:
@@ -273,6 +274,11 @@ def read_shaper_params(get: Callable[[str, object], object]) -> ShaperParams:
     dry_run = get("~dry_run", False)
     if not isinstance(dry_run, bool):
         raise ValueError(f"~dry_run: expected true or false, got {dry_run!r}")
+    seed = get("~seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValueError(f"~seed: expected an integer >= 0, got {seed!r}")
+    if seed and mode != "coverage":
+        raise ValueError(f"~seed: varies the coverage model; it has no meaning in {mode} mode")
     default = TwoScaleLayout()
     layout = TwoScaleLayout(
         robot=replace(default.robot, namespace=name_param("~robot_namespace",
@@ -282,4 +288,4 @@ def read_shaper_params(get: Callable[[str, object], object]) -> ShaperParams:
                                                             default.laptop.namespace),
                        interface=name_param("~laptop_interface", default.laptop.interface)))
     return ShaperParams(mode, access_point, schedule, number("~rate_hz", 5.0, 0.0, True),
-                        layout, burst, dry_run)
+                        layout, burst, dry_run, seed)

@@ -22,6 +22,7 @@ from anyscale_msgs.msg import MigrationEvent
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Float32, String
+from visualization_msgs.msg import MarkerArray
 
 from anyscale_core.model import ModelError
 from anyscale_core.model_loader import load_model
@@ -82,6 +83,7 @@ class TestbedMonitor:
                                  link=rospy.get_param("~link", ""))
         self.lock = threading.Lock()
         self.link_up = True
+        self.markers = set()        # ids of the AR markers recognised so far
         self.done = threading.Event()
         # Output topics of the nodes that may move, and the tolerances of their connections.
         critical = {n for c in self.model.connections if c.tolerance == 0
@@ -99,7 +101,9 @@ class TestbedMonitor:
         self.node_names = [n.name for n in self.model.nodes]
         self.master = rosgraph.Master(rospy.get_name())
         self.pose_topic = rospy.get_param("~pose_topic", "/amcl_pose")
-        for topic in sorted(set(self.outputs.values()) | {self.pose_topic} - {""}):
+        self.markers_topic = rospy.get_param("~markers_topic", "/ar_markers")
+        for topic in sorted(set(self.outputs.values())
+                            | {self.pose_topic, self.markers_topic} - {""}):
             self.rec.receipts[topic] = []
             rospy.Subscriber(topic, rospy.AnyMsg, self._on_output, callback_args=topic,
                              queue_size=50)
@@ -129,6 +133,12 @@ class TestbedMonitor:
             p, stamp = pose.pose.pose.position, pose.header.stamp.to_sec()
             with self.lock:
                 self.rec.estimate.append((stamp - self.rec.started_wall, p.x, p.y))
+        elif topic == self.markers_topic:
+            ids = {m.id for m in MarkerArray().deserialize(msg._buff).markers}
+            if not ids <= self.markers:
+                with self.lock:
+                    self.markers |= ids
+                    self.rec.markers_seen = sorted(self.markers)
 
     def _on_mapping(self, msg):
         mapping = {a.node: a.scale for a in msg.assignments}
@@ -163,9 +173,12 @@ class TestbedMonitor:
 
     def _on_truth(self, msg):
         p, t = msg.pose.pose.position, msg.header.stamp.to_sec() - self.rec.started_wall
+        q = msg.pose.pose.orientation
+        yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
         with self.lock:
             if not self.rec.truth or t - self.rec.truth[-1][0] >= 0.1:
                 self.rec.truth.append((t, p.x, p.y))
+                self.rec.truth_yaw.append((t, yaw))
 
     def _on_status(self, msg):
         with self.lock:

@@ -62,6 +62,10 @@ class TestbedRecord:
     outputs: Dict[str, str] = field(default_factory=dict)         # node -> its output topic
     tolerances: Dict[str, float] = field(default_factory=dict)    # output topic -> Δ in s
     violations: List[Violation] = field(default_factory=list)     # see tolerance_violations
+    # Ground truth's heading at truth's samples (t, yaw rad), for the mean |omega| of the
+    # paper's Fig. 6, and the ids of the AR markers recognised during the run.
+    truth_yaw: List[Tuple[float, float]] = field(default_factory=list)
+    markers_seen: List[int] = field(default_factory=list)
 
     def save(self, path: str):
         with open(path, "w") as f:

@@ -1,12 +1,15 @@
 """WiFi link model of the two-scale test bed: available bandwidth from the robot's position
 (log-distance path loss, walls, 802.11g rate steps), or from a scripted schedule for tests.
+Seeded shadowing and interference on top of it: wifi_variation.py.
 
 The constants are typical published values, not fitted to any result:
 - reference loss 40 dB at 1 m: free-space loss at 2.4 GHz, 20 log10(4 pi d0 / lambda);
 - path-loss exponent 3.0: the usual indoor-office value (2.7-3.5 in the literature);
 - 5 dB per wall crossed: plasterboard office partitions (concrete would be 10-15 dB);
 - 15 dBm transmit power: a common access point's OFDM output;
-- receiver sensitivity per 802.11g rate (6..54 Mbit/s at -82..-65 dBm) from vendor datasheets;
+- receiver sensitivity per 802.11g rate (6..54 Mbit/s at -82..-65 dBm): the OFDM PHY's
+  receiver minimum input sensitivity (IEEE Std 802.11-2016, 17.3.10.2), which vendor
+  datasheets repeat;
 - about half the PHY rate is usable by TCP (CSMA/CA, ACKs, headers).
 """
 from dataclasses import dataclass
@@ -77,12 +80,16 @@ class CoverageModel:
     access_point_xy: Tuple[float, float]
     radio: RadioParams = RadioParams()
 
-    def bandwidth_at(self, x: float, y: float) -> float:
-        """Mbit/s usable by TCP with the robot at (x, y); 0 = out of coverage."""
+    def received_power_at(self, x: float, y: float) -> Tuple[float, int]:
+        """(received power in dBm, walls crossed) with the robot at (x, y)."""
         walls = walls_crossed(self.occupied, self.resolution, self.origin_xy,
                               self.access_point_xy, (x, y))
         distance = math.hypot(x - self.access_point_xy[0], y - self.access_point_xy[1])
-        return usable_bandwidth_mbps(received_power_dbm(distance, walls, self.radio), self.radio)
+        return received_power_dbm(distance, walls, self.radio), walls
+
+    def bandwidth_at(self, x: float, y: float) -> float:
+        """Mbit/s usable by TCP with the robot at (x, y); 0 = out of coverage."""
+        return usable_bandwidth_mbps(self.received_power_at(x, y)[0], self.radio)
 
 
 class ScriptedSchedule:

@@ -1,0 +1,17 @@
+#!/usr/bin/python3
+"""The paper's evaluation on the two-scale test bed (baseline, four seeded AnyScale tests per
+allocator, best case; the table beside the paper's, Fig. 5 and Fig. 6): the logic is
+anyscale_testbed.evaluation_run; results go to results/evaluation/ of this workspace.
+
+Root, with the workspace sourced; options: --help.
+"""
+import os
+import sys
+
+from anyscale_testbed.evaluation_run import main
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+if __name__ == "__main__":
+    sys.exit(main(os.path.join(ROOT, "results", "evaluation"),
+                  os.path.join(ROOT, "scripts", "run_testbed.py")))

@@ -1,0 +1,214 @@
+"""The evaluation's table (scripts/run_evaluation.py): one row per run and a mean row per
+allocator over its seeded tests, against the baseline (every node on the robot), beside the
+paper's figures (section V, Fig. 6); aligned text, Markdown and CSV. Pure (no ROS): it lays
+out evaluation_figures.RunFigures."""
+import csv
+import math
+from typing import Dict, List, Optional, Sequence
+
+import numpy as np
+
+from .evaluation_figures import CONFIGURATIONS, RunFigures
+from .tolerance_report import silence_cell, topics_of
+
+# The paper's figures (section V): over its four tests, migration cut the time to complete by
+# 28 % against no migration, with the network everywhere by 50 %; the mean angular velocity
+# was about 5 % above the baseline's, and 4 deg/s is the limit of safe behaviour.
+PAPER_MEAN_GAIN = 0.28
+PAPER_BEST_CASE_GAIN = 0.50
+PAPER_OMEGA_ABOVE_BASELINE = 0.05
+SAFE_OMEGA_DEG_S = 4.0
+
+KIND_TITLES = {"paper": "AnyScale (paper)", "paper_local": "AnyScale (paper_local)",
+               "optimal": "AnyScale (optimal)"}
+
+
+def baseline_of(figures: Sequence[RunFigures]) -> Optional[RunFigures]:
+    return next((f for f in figures if f.kind == "baseline"), None)
+
+
+def _ratio(value: float, reference: Optional[float]) -> float:
+    if reference is None or not math.isfinite(value) or not reference or \
+            not math.isfinite(reference):
+        return math.nan
+    return value / reference
+
+
+def gain(f: RunFigures, baseline: Optional[RunFigures]) -> float:
+    """1 - time to complete / the baseline's (NaN where either is missing)."""
+    return 1.0 - _ratio(f.row.path_time_s, baseline.row.path_time_s if baseline else None)
+
+
+def bound_time_s(f: RunFigures, baseline: Optional[RunFigures]) -> float:
+    """The coverage bound as a time to complete: the baseline's, cut by the bound's gain."""
+    if baseline is None:
+        return math.nan
+    return baseline.row.path_time_s * (1.0 - f.bound.gain)
+
+
+def bound_share(f: RunFigures, baseline: Optional[RunFigures]) -> float:
+    """The share of the coverage bound's gain this run reached."""
+    return _ratio(gain(f, baseline), f.bound.gain if f.bound.gain > 0 else None)
+
+
+def _percent(v: float) -> str:
+    return "-" if not math.isfinite(v) else f"{100 * v:.1f} %"
+
+
+def _fixed(v: float, unit: str, digits: int = 1) -> str:
+    return "-" if not math.isfinite(v) else f"{v:.{digits}f}{unit}"
+
+
+def header(topics: Sequence[str]) -> List[str]:
+    return (["run", "exit", "time to complete", "gain vs baseline", "coverage bound",
+             "share of bound's gain", "mean |w|", "|w| / baseline", "markers", "AMCL RMS error"]
+            + [f"{t} longest/Δ" for t in topics]
+            + ["violations", "migrations"] + [f"{c} time" for c in CONFIGURATIONS] + ["note"])
+
+
+def run_cells(f: RunFigures, baseline: Optional[RunFigures], topics: Sequence[str]) -> List[str]:
+    base_omega = baseline.mean_omega_deg_s if baseline else None
+    has_bound = f.kind not in ("baseline", "best_case")
+    bound = (f"{bound_time_s(f, baseline):.0f} s ({_percent(f.bound.gain)})"
+             if has_bound and math.isfinite(bound_time_s(f, baseline)) else "-")
+    return ([f.name, str(f.row.exit_code), _fixed(f.row.path_time_s, " s", 0),
+             _percent(gain(f, baseline)) if f is not baseline else "-", bound,
+             _percent(bound_share(f, baseline)) if has_bound else "-",
+             _fixed(f.mean_omega_deg_s, " °/s", 2), _fixed(_ratio(f.mean_omega_deg_s, base_omega),
+                                                           "", 3),
+             str(f.markers), _fixed(f.rms_error_m, " m", 3)]
+            + [silence_cell(f.row, t) for t in topics]
+            + [str(len(f.row.violations)), str(f.row.migrations)]
+            + [_percent(f.shares[c]) if f.shares else "-" for c in CONFIGURATIONS]
+            + [f.row.note])
+
+
+def _nanmean(values: Sequence[float]) -> float:
+    finite = [v for v in values if math.isfinite(v)]
+    return float(np.mean(finite)) if finite else math.nan
+
+
+def mean_cells(kind: str, runs: Sequence[RunFigures], baseline: Optional[RunFigures],
+               topics: Sequence[str]) -> List[str]:
+    """The mean over one allocator's seeded tests (of the runs that have each figure)."""
+    base_omega = baseline.mean_omega_deg_s if baseline else None
+    omega = _nanmean([f.mean_omega_deg_s for f in runs])
+    bound_gain = _nanmean([f.bound.gain for f in runs])
+    silences = []
+    for t in topics:
+        longest = [f.row.longest_s.get(t, math.nan) for f in runs]
+        silences.append(_fixed(max([v for v in longest if math.isfinite(v)], default=math.nan),
+                               " s max", 2))
+    return ([f"mean {KIND_TITLES.get(kind, kind)}, {len(runs)} tests", "",
+             _fixed(_nanmean([f.row.path_time_s for f in runs]), " s", 0),
+             _percent(_nanmean([gain(f, baseline) for f in runs])),
+             f"- ({_percent(bound_gain)})",
+             _percent(_nanmean([bound_share(f, baseline) for f in runs])),
+             _fixed(omega, " °/s", 2), _fixed(_ratio(omega, base_omega), "", 3),
+             _fixed(_nanmean([f.markers for f in runs]), "", 1),
+             _fixed(_nanmean([f.rms_error_m for f in runs]), " m", 3)]
+            + silences
+            + [str(sum(len(f.row.violations) for f in runs)),
+               _fixed(_nanmean([f.row.migrations for f in runs]), "", 1)]
+            + [_percent(_nanmean([f.shares.get(c, math.nan) for f in runs]))
+               for c in CONFIGURATIONS] + [""])
+
+
+def seeded_kinds(figures: Sequence[RunFigures]) -> Dict[str, List[RunFigures]]:
+    """The allocators' seeded tests, by allocator, in the order they first appear."""
+    kinds: Dict[str, List[RunFigures]] = {}
+    for f in figures:
+        if f.kind not in ("baseline", "best_case"):
+            kinds.setdefault(f.kind, []).append(f)
+    return kinds
+
+
+def table_lines(figures: Sequence[RunFigures]) -> List[List[str]]:
+    """Header, a row per run, then a mean row per allocator."""
+    topics = topics_of([f.row for f in figures])
+    baseline = baseline_of(figures)
+    lines = [header(topics)] + [run_cells(f, baseline, topics) for f in figures]
+    lines += [mean_cells(k, runs, baseline, topics)
+              for k, runs in seeded_kinds(figures).items()]
+    return lines
+
+
+def paper_comparison(figures: Sequence[RunFigures]) -> List[str]:
+    """The paper's headline figures beside ours, one line each."""
+    baseline = baseline_of(figures)
+    tests = seeded_kinds(figures).get("paper", [])
+    best = next((f for f in figures if f.kind == "best_case"), None)
+    omega = _nanmean([f.mean_omega_deg_s for f in tests])
+    above = _ratio(omega, baseline.mean_omega_deg_s if baseline else None) - 1.0
+    highest = max([f.mean_omega_deg_s for f in tests + ([baseline] if baseline else [])
+                   if math.isfinite(f.mean_omega_deg_s)], default=math.nan)
+    return [
+        f"mean gain of the AnyScale tests: paper {_percent(PAPER_MEAN_GAIN)} over 4 tests; "
+        f"here {_percent(_nanmean([gain(f, baseline) for f in tests]))} over {len(tests)}",
+        f"best case (the network everywhere): paper {_percent(PAPER_BEST_CASE_GAIN)}; here "
+        f"{_percent(gain(best, baseline)) if best else '-'}",
+        f"share of the coverage bound's gain reached: here "
+        f"{_percent(_nanmean([bound_share(f, baseline) for f in tests]))} (the paper has no "
+        f"bound)",
+        f"mean |w| against the baseline: paper about {_percent(PAPER_OMEGA_ABOVE_BASELINE)} "
+        f"above; here {_percent(above)} {'above' if not above < 0 else 'below'}",
+        f"highest mean |w|: limit of safe behaviour {SAFE_OMEGA_DEG_S:g} °/s; here "
+        f"{_fixed(highest, ' °/s', 2)}"]
+
+
+def violation_lines(figures: Sequence[RunFigures]) -> List[str]:
+    return [f"{f.name}: {v.topic} silent {v.silence_s:.2f} s > Δ {v.tolerance_s:g} s from "
+            f"t={v.start_t:.1f} s: {v.cause}" for f in figures for v in f.row.violations]
+
+
+def format_table(figures: Sequence[RunFigures]) -> str:
+    lines = table_lines(figures)
+    widths = [max(len(line[i]) for line in lines) for i in range(len(lines[0]))]
+    text = ["  ".join(c.ljust(w) for c, w in zip(line, widths)).rstrip() for line in lines]
+    text += ["VIOLATION " + v for v in violation_lines(figures)]
+    text += ["", "paper vs here:"] + ["  " + c for c in paper_comparison(figures)]
+    return "\n".join(text)
+
+
+def format_markdown(figures: Sequence[RunFigures], title: str) -> str:
+    lines = table_lines(figures)
+    md = [f"# {title}", "", "| " + " | ".join(lines[0]) + " |", "|" + "---|" * len(lines[0])]
+    md += ["| " + " | ".join(c.replace("|", "/") for c in line) + " |" for line in lines[1:]]
+    md += ["", "## The paper beside this test bed", ""]
+    md += [f"- {c}" for c in paper_comparison(figures)]
+    md += ["", "## Violations of a connection's tolerance", ""]
+    md += [f"- {v}" for v in violation_lines(figures)] or ["none"]
+    return "\n".join(md) + "\n"
+
+
+def write_csv(path: str, figures: Sequence[RunFigures]):
+    """One line per run, plain numbers (seconds, fractions 0..1, °/s, m); empty = unknown."""
+    topics = topics_of([f.row for f in figures])
+    baseline = baseline_of(figures)
+    with open(path, "w", newline="") as out:
+        w = csv.writer(out)
+        w.writerow(["run", "kind", "seed", "exit_code", "time_to_complete_s",
+                    "gain_vs_baseline", "bound_time_s", "bound_gain", "share_of_bound_gain",
+                    "mean_abs_omega_deg_s", "omega_ratio_to_baseline", "markers",
+                    "amcl_rms_error_m"]
+                   + [f"longest_silence_s {t}" for t in topics]
+                   + [f"tolerance_s {t}" for t in topics]
+                   + ["violations", "migrations"]
+                   + [f"time_share {c}" for c in CONFIGURATIONS] + ["note"])
+        for f in figures:
+            w.writerow([f.name, f.kind, f.seed, f.row.exit_code, _number(f.row.path_time_s),
+                        _number(gain(f, baseline)), _number(bound_time_s(f, baseline)),
+                        _number(f.bound.gain), _number(bound_share(f, baseline)),
+                        _number(f.mean_omega_deg_s),
+                        _number(_ratio(f.mean_omega_deg_s,
+                                       baseline.mean_omega_deg_s if baseline else None)),
+                        f.markers, _number(f.rms_error_m)]
+                       + [_number(f.row.longest_s.get(t, math.nan)) for t in topics]
+                       + [_number(f.row.tolerances.get(t, math.nan)) for t in topics]
+                       + [len(f.row.violations), f.row.migrations]
+                       + [_number(f.shares.get(c, math.nan)) for c in CONFIGURATIONS]
+                       + [f.row.note])
+
+
+def _number(v: float) -> str:
+    return "" if not math.isfinite(v) else f"{v:.4f}"

@@ -1,0 +1,147 @@
+"""The evaluation's figures and table, from synthetic test-bed records: the coverage bound,
+Fig. 5's configurations, mean |w|, the gains against the baseline, the paper beside them."""
+import csv
+import math
+
+import pytest
+
+from anyscale_testbed.evaluation_figures import (AMCL_ON_LAPTOP, AR_ON_LAPTOP, BOTH_ON_LAPTOP,
+                                                 BOTH_ON_ROBOT, configuration_of,
+                                                 configuration_shares,
+                                                 configurations_along_path, coverage_bound,
+                                                 mean_abs_omega_deg_s, run_figures)
+from anyscale_testbed.evaluation_table import (format_markdown, format_table, gain,
+                                               paper_comparison, table_lines, write_csv)
+from anyscale_testbed.testbed_record import TestbedRecord, tolerance_violations
+
+AMCL_MBPS = 0.22
+
+
+def on(amcl="robot", ar="robot"):
+    return {"amcl": amcl, "ar_recognition": ar, "navigation": "robot"}
+
+
+def record(done_t=110.0, speed=0.3, yaw_rate=0.05, link_until=60.0, mappings=None,
+           amcl_gap=None):
+    """Navigation from t=10 to done_t; the robot drives east at `speed` turning at `yaw_rate`
+    rad/s; the link up at 10 Mbit/s until `link_until`, then down."""
+    times = [round(0.1 * k, 1) for k in range(0, 2501)]
+    amcl = [t for t in times[::2] if amcl_gap is None or not amcl_gap[0] < t < amcl_gap[1]]
+    rec = TestbedRecord(
+        world="small_loop", link="coverage", finished_t=250.0,
+        truth=[(t, speed * t, 0.0) for t in times],
+        truth_yaw=[(t, yaw_rate * t) for t in times],
+        estimate=[(t, speed * t + 0.1, 0.0) for t in times[::5]],
+        bandwidth=[(0.0, 10.0), (link_until, 0.0)],
+        mappings=mappings if mappings is not None else [
+            (5.0, on(), 0.0, 0.0), (30.0, on(amcl="laptop"), 0.0, 0.0), (60.0, on(), 0.0, 0.0)],
+        navigation_status=[(10.0, "drive 0/4")] + ([(done_t, "done 4/4")] if done_t else []),
+        receipts={"/amcl_pose": amcl}, outputs={"amcl": "/amcl_pose"},
+        tolerances={"/amcl_pose": 2.0}, markers_seen=[0, 1, 2, 3])
+    rec.violations = tolerance_violations(rec)
+    return rec
+
+
+def test_fig5_configurations_by_where_amcl_and_ar_run():
+    assert configuration_of(on(amcl="laptop")) == AMCL_ON_LAPTOP
+    assert configuration_of(on()) == BOTH_ON_ROBOT
+    assert configuration_of(on("laptop", "laptop")) == BOTH_ON_LAPTOP
+    assert configuration_of(on(ar="laptop")) == AR_ON_LAPTOP
+    assert configuration_of({}) == BOTH_ON_ROBOT
+
+
+def test_time_shares_of_the_configurations_over_the_mission():
+    shares = configuration_shares(record())
+    assert shares[BOTH_ON_ROBOT] == pytest.approx(0.7)      # 10-30 and 60-110 of 10-110
+    assert shares[AMCL_ON_LAPTOP] == pytest.approx(0.3)
+    assert shares[BOTH_ON_LAPTOP] == shares[AR_ON_LAPTOP] == 0.0
+    along = configurations_along_path(record())
+    assert along[0] == BOTH_ON_ROBOT and along[250] == AMCL_ON_LAPTOP and len(along) == 1001
+
+
+def test_coverage_bound_drives_fast_where_the_link_carries_amcl():
+    bound = coverage_bound(record(), AMCL_MBPS)
+    assert bound.path_m == pytest.approx(30.0)              # 100 s at 0.3 m/s
+    assert bound.carried_share == pytest.approx(0.5)        # the link went at t=60
+    assert bound.drive_s == pytest.approx(15 / 0.4 + 15 / 0.2)
+    assert bound.gain == pytest.approx(0.25)
+    # A link too thin for AMCL's traffic is no better than none; a full one halves the time.
+    assert coverage_bound(record(), 12.0).gain == pytest.approx(0.0)
+    assert coverage_bound(record(link_until=1e9), AMCL_MBPS).gain == pytest.approx(0.5)
+    assert math.isnan(coverage_bound(TestbedRecord(), AMCL_MBPS).gain)
+
+
+def test_mean_abs_omega_over_the_mission_and_nan_without_heading():
+    assert mean_abs_omega_deg_s(record(yaw_rate=-0.05)) == pytest.approx(0.05 * 180 / math.pi)
+    old = record()
+    old.truth_yaw = []
+    assert math.isnan(mean_abs_omega_deg_s(old))
+
+
+def campaign():
+    baseline = run_figures("baseline", "baseline", 0, 0,
+                           record(done_t=210.0, mappings=[]), AMCL_MBPS)
+    # The link carries AMCL over the first half of each test's path: a bound of 25 %.
+    tests = [run_figures(f"AnyScale seed {s}", "paper", s, 0,
+                         record(done_t=160.0 + s, link_until=10.0 + (150.0 + s) / 2),
+                         AMCL_MBPS) for s in (1, 2)]
+    broken = run_figures("optimal seed 1", "optimal", 1, 0,
+                         record(done_t=None, amcl_gap=(40.0, 45.0)), AMCL_MBPS)
+    missing = run_figures("optimal seed 2", "optimal", 2, 1, None, AMCL_MBPS)
+    best = run_figures("best case", "best_case", 0, 0, record(done_t=110.0, link_until=1e9),
+                       AMCL_MBPS)
+    return [baseline] + tests + [broken, missing, best]
+
+
+def test_gains_against_the_baseline_and_the_share_of_the_bound():
+    baseline, one, two, broken, missing, best = campaign()
+    assert gain(one, baseline) == pytest.approx(1 - 151 / 200)
+    assert gain(best, baseline) == pytest.approx(0.5)
+    assert math.isnan(gain(broken, baseline)) and math.isnan(gain(missing, baseline))
+    assert broken.row.note == "the loop was not completed" and len(broken.row.violations) == 1
+    assert missing.row.note == "no record" and missing.row.exit_code == 1
+    lines = table_lines(campaign())
+    head = lines[0]
+    row = dict(zip(head, lines[2]))
+    assert row["time to complete"] == "151 s" and row["gain vs baseline"] == "24.5 %"
+    assert row["coverage bound"] == "150 s (25.0 %)"         # 200 s cut by the bound's 25 %
+    assert row["share of bound's gain"] == "98.0 %"
+    assert row["mean |w|"] == "2.86 °/s" and row["|w| / baseline"] == "1.000"
+    assert row["markers"] == "4" and row["AMCL RMS error"] == "0.100 m"
+    assert row["AMCL on laptop time"] == "19.9 %" and row["both on robot time"] == "80.1 %"
+    assert row["/amcl_pose longest/Δ"] == "0.20/2 s" and row["migrations"] == "0"
+    means = {line[0]: dict(zip(head, line)) for line in lines[7:]}
+    assert set(means) == {"mean AnyScale (paper), 2 tests", "mean AnyScale (optimal), 2 tests"}
+    paper = means["mean AnyScale (paper), 2 tests"]
+    assert paper["time to complete"] == "152 s" and paper["gain vs baseline"] == "24.2 %"
+    optimal = means["mean AnyScale (optimal), 2 tests"]
+    assert optimal["violations"] == "1" and optimal["time to complete"] == "-"
+
+
+def test_the_paper_beside_ours():
+    lines = paper_comparison(campaign())
+    assert lines[0] == "mean gain of the AnyScale tests: paper 28.0 % over 4 tests; here 24.2 % " \
+                       "over 2"
+    assert lines[1] == "best case (the network everywhere): paper 50.0 %; here 50.0 %"
+    assert lines[2].startswith("share of the coverage bound's gain reached: here 97.0 %")
+    assert lines[3] == "mean |w| against the baseline: paper about 5.0 % above; here 0.0 % above"
+    assert lines[4] == "highest mean |w|: limit of safe behaviour 4 °/s; here 2.86 °/s"
+
+
+def test_text_markdown_and_csv_copies(tmp_path):
+    figures = campaign()
+    text = format_table(figures)
+    assert "VIOLATION optimal seed 1: /amcl_pose silent 5.0" in text
+    assert text.splitlines()[-6] == "paper vs here:"
+    md = format_markdown(figures, "Evaluation")
+    assert md.startswith("# Evaluation\n\n| run | exit | time to complete |")
+    assert "| AnyScale seed 1 | 0 | 151 s | 24.5 % |" in md
+    assert "## The paper beside this test bed" in md
+    write_csv(str(tmp_path / "e.csv"), figures)
+    with open(tmp_path / "e.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["kind"] for r in rows] == ["baseline", "paper", "paper", "optimal", "optimal",
+                                         "best_case"]
+    assert float(rows[1]["gain_vs_baseline"]) == pytest.approx(1 - 151 / 200)
+    assert rows[1]["bound_gain"] == "0.2500" and rows[4]["time_to_complete_s"] == ""
+    assert rows[1]["time_share AMCL on laptop"] == "0.1987" and rows[1]["markers"] == "4"

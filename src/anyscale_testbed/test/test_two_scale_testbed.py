@@ -12,8 +12,8 @@ import pytest
 
 from anyscale_testbed.testbed_teardown import is_alive
 from anyscale_testbed.two_scale_testbed import (ScaleEnd, TwoScaleError, TwoScaleLayout,
-                                                TwoScaleTestbed, cfs_period_us,
-                                                missing_capabilities, run, shape_commands)
+                                                TwoScaleTestbed, missing_capabilities, run,
+                                                shape_commands)
 
 MISSING = missing_capabilities()
 needs_testbed = pytest.mark.skipif(bool(MISSING), reason="the test bed needs " +
@@ -86,14 +86,6 @@ def test_traffic_crosses_a_shaped_link_and_stops_when_it_is_down(tmp_path):
         assert server.poll() is None
     assert "anyscale_t_" not in namespaces()
     assert server.poll() is not None
-
-
-def test_cfs_period_is_short_and_keeps_the_kernels_minimum_quota():
-    assert cfs_period_us(0.34) == 10_000                   # quota 3.4 ms per 10 ms
-    assert cfs_period_us(0.9) == 10_000
-    assert cfs_period_us(0.05) == 20_000                   # 1 ms of quota, the kernel's least
-    assert round(0.05 * cfs_period_us(0.05)) >= 1_000
-    assert cfs_period_us(0.0) == 10_000                    # unlimited: the period is unused
 
 
 @needs_testbed

@@ -9,7 +9,6 @@ is not packaged for Debian's Python here, and these are a handful of well-known 
 from dataclasses import dataclass
 import errno
 import fcntl
-import math
 import os
 import signal
 import subprocess
@@ -21,23 +20,7 @@ from .testbed_teardown import (attempt, remove_namespace, remove_veths, signal_q
                                signals_deferred, stop_process_groups)
 
 CGROUP_CPU_ROOT = "/sys/fs/cgroup/cpu"
-# The quota emulates a slower CPU. With the kernel's default 100 ms period, a group at 0.34
-# cores that has used its 34 ms stalls for the rest of the period: every thread that then
-# wakes (a master call answered, a message arrived) waits up to 66 ms, a stall a slower CPU
-# never has. A node start on the robot is a chain of such wake-ups (registration, parameters,
-# subscriptions, the map), and on the test bed it took 0.8 s to construct AMCL on the robot
-# where the laptop took 0.1 s. A 10 ms period keeps the same share with stalls of at most
-# 6.6 ms. The kernel wants a quota of at least 1 ms, so small shares get a longer period.
-CFS_PERIOD_US = 10_000
-CFS_MIN_QUOTA_US = 1_000
-
-
-def cfs_period_us(cores: float) -> int:
-    """The CFS period for a quota of `cores`: CFS_PERIOD_US, longer where the quota per
-    period would fall below the kernel's 1 ms minimum."""
-    if cores <= 0:
-        return CFS_PERIOD_US
-    return max(CFS_PERIOD_US, int(math.ceil(CFS_MIN_QUOTA_US / cores)))
+CFS_PERIOD_US = 100_000
 
 
 class TwoScaleError(RuntimeError):
@@ -127,9 +110,8 @@ class CpuQuota:
 
     def create(self):
         os.makedirs(self.path, exist_ok=True)
-        period = cfs_period_us(self.cores)
-        quota = int(round(self.cores * period)) if self.cores > 0 else -1
-        self._write("cpu.cfs_period_us", period)
+        quota = int(self.cores * CFS_PERIOD_US) if self.cores > 0 else -1
+        self._write("cpu.cfs_period_us", CFS_PERIOD_US)
         self._write("cpu.cfs_quota_us", quota)
 
     def add(self, pid: int):

@@ -25,8 +25,7 @@ import sys
 import time
 
 from anyscale_testbed.premise_figures import COLUMNS, format_markdown, premise_figures
-from anyscale_testbed.bench_runs import interrupt_on_sigterm, latest_record, run_logged
-from anyscale_testbed.two_scale_testbed import missing_capabilities
+from anyscale_testbed.bench_runs import latest_record, run_logged, start_on_the_testbed
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 RUN_TESTBED = os.path.join(ROOT, "scripts", "run_testbed.py")
@@ -69,10 +68,7 @@ def run_once(quota, case: str, duration: float, out_dir: str) -> int:
 
 def main(argv=None) -> int:
     args = parse_args(argv)
-    interrupt_on_sigterm()
-    missing = missing_capabilities()
-    if missing:
-        sys.exit("bench: the test bed needs " + "; ".join(missing))
+    start_on_the_testbed("bench")
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     out = os.path.abspath(args.out or os.path.join(ROOT, "results", "bench_premise", stamp))
     runs = [(q, c) for q in args.quotas for c in args.cases]

@@ -22,10 +22,9 @@ import time
 
 import yaml
 
-from anyscale_testbed.bench_runs import interrupt_on_sigterm, latest_record, run_logged
+from anyscale_testbed.bench_runs import latest_record, run_logged, start_on_the_testbed
 from anyscale_testbed.tolerance_report import (format_markdown, format_table, row_cells, run_row,
                                                topics_of, write_csv)
-from anyscale_testbed.two_scale_testbed import missing_capabilities
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 RUN_TESTBED = os.path.join(ROOT, "scripts", "run_testbed.py")
@@ -73,10 +72,7 @@ def run_once(args, start_goal: int, out_dir: str) -> int:
 
 def main(argv=None) -> int:
     args = parse_args(argv)
-    interrupt_on_sigterm()
-    missing = missing_capabilities()
-    if missing:
-        sys.exit("bench: the test bed needs " + "; ".join(missing))
+    start_on_the_testbed("bench")
     goals = goal_count(args.world)
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     out = os.path.abspath(args.out or os.path.join(ROOT, "results", "bench_tolerances", stamp))

@@ -81,7 +81,7 @@ def test_the_evaluation_runs_what_is_not_recorded_yet_and_writes_table_and_figur
         tmp_path, monkeypatch, capsys):
     fake = FakeRuns()
     monkeypatch.setattr(evaluation_run, "run_logged", fake)
-    monkeypatch.setattr(evaluation_run, "missing_capabilities", lambda: [])
+    monkeypatch.setattr(evaluation_run, "start_on_the_testbed", lambda program: None)
     out = str(tmp_path / "eval")
     argv = ["--world", "small_loop", "--seeds", "1", "--runs", "baseline,paper",
             "--duration", "50", "--out", out]
@@ -116,7 +116,7 @@ def test_fig5_colours_the_paths_by_configuration(tmp_path, monkeypatch):
     import matplotlib.image
     fake = FakeRuns()
     monkeypatch.setattr(evaluation_run, "run_logged", fake)
-    monkeypatch.setattr(evaluation_run, "missing_capabilities", lambda: [])
+    monkeypatch.setattr(evaluation_run, "start_on_the_testbed", lambda program: None)
     out = str(tmp_path / "eval")
     assert evaluation_run.main("unused", "/nonexistent/run_testbed.py",
                                ["--world", "small_loop", "--seeds", "1", "--runs", "paper",

@@ -201,8 +201,11 @@ def test_teardown_twice_is_fine():
 
 
 # A script that holds a test bed until it is interrupted, as scripts/run_testbed.py does.
+# Ctrl-C's own handler first: a test run started in the background of a shell ignores
+# SIGINT, and the script would inherit that.
 HOLDER = f"""
-import subprocess, sys, time
+import signal, subprocess, sys, time
+signal.signal(signal.SIGINT, signal.default_int_handler)
 from anyscale_testbed.two_scale_testbed import ScaleEnd, TwoScaleLayout, TwoScaleTestbed
 LAYOUT = {LAYOUT!r}
 try:

@@ -5,9 +5,11 @@ import glob
 import os
 import signal
 import subprocess
+import sys
 from typing import List, Optional
 
 from .testbed_record import TestbedRecord
+from .two_scale_testbed import missing_capabilities
 
 
 def interrupt_on_sigterm():
@@ -17,6 +19,15 @@ def interrupt_on_sigterm():
     def raise_interrupt(*_):
         raise KeyboardInterrupt
     signal.signal(signal.SIGTERM, raise_interrupt)
+
+
+def start_on_the_testbed(program: str):
+    """What a bench does first: SIGTERM ends it as Ctrl-C does, and it ends with one line if
+    this machine cannot run the test bed."""
+    interrupt_on_sigterm()
+    missing = missing_capabilities()
+    if missing:
+        sys.exit(f"{program}: the test bed needs " + "; ".join(missing))
 
 
 def run_logged(argv: List[str], out_dir: str) -> int:

@@ -25,7 +25,7 @@ from anyscale_core.model import ModelError
 from anyscale_core.model_loader import load_model
 from anyscale_nav_demo.occupancy_map import MapError, load_map
 
-from .bench_runs import interrupt_on_sigterm, latest_record, run_logged
+from .bench_runs import latest_record, run_logged, start_on_the_testbed
 from .demo_run import nav_demo_path
 from .evaluation_figures import (RunFigures, configurations_along_path, run_figures,
                                  truth_in_window)
@@ -33,7 +33,6 @@ from .evaluation_plots import draw_fig5, draw_fig6
 from .evaluation_table import format_markdown, format_table, write_csv
 from .link_shaper import coverage_grid, coverage_model_from_grid
 from .testbed_record import TestbedRecord
-from .two_scale_testbed import missing_capabilities
 
 ALLOCATORS = ("paper", "paper_local", "optimal")
 # No migration: the link is down throughout, so every node stays on the robot.
@@ -180,11 +179,7 @@ def draw_figures(out: str, world: str, plan: Sequence[PlannedRun], figures: List
 
 def main(default_out: str, run_testbed: str, argv=None) -> int:
     args = parse_args(argv, default_out)
-    interrupt_on_sigterm()
-    missing = missing_capabilities()
-    if missing:
-        print("run_evaluation: the test bed needs " + "; ".join(missing), file=sys.stderr)
-        return 1
+    start_on_the_testbed("run_evaluation")
     try:
         amcl_mbps = amcl_bandwidth_mbps(nav_demo_path("config", "testbed.yaml"))
     except (ModelError, ValueError) as e:

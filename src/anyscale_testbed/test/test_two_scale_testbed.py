@@ -201,11 +201,8 @@ def test_teardown_twice_is_fine():
 
 
 # A script that holds a test bed until it is interrupted, as scripts/run_testbed.py does.
-# Ctrl-C's own handler first: a test run started in the background of a shell ignores
-# SIGINT, and the script would inherit that.
 HOLDER = f"""
-import signal, subprocess, sys, time
-signal.signal(signal.SIGINT, signal.default_int_handler)
+import subprocess, sys, time
 from anyscale_testbed.two_scale_testbed import ScaleEnd, TwoScaleLayout, TwoScaleTestbed
 LAYOUT = {LAYOUT!r}
 try:
@@ -223,9 +220,12 @@ except KeyboardInterrupt:
 @needs_testbed
 @pytest.mark.parametrize("interrupts", [1, 2], ids=["ctrl-c", "ctrl-c-again-during-teardown"])
 def test_ctrl_c_leaves_nothing_behind(interrupts):
+    # SIGINT as a terminal gives it, to the script and the processes it starts: a test run
+    # started in the background of a shell ignores SIGINT, and they would inherit that.
     script = subprocess.Popen([sys.executable, "-c", HOLDER], stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True,
-                              env=dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path)))
+                              env=dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path)),
+                              preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         pids = [int(p) for p in script.stdout.readline().split()]
         assert len(pids) == 2, script.stderr.read()

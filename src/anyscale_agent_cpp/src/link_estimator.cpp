@@ -23,12 +23,13 @@ LinkEstimator::LinkEstimator(double timeout_s, std::size_t history, double bandw
   , last_rtt_(kNaN)
   , last_answer_t_(kNaN)
   , bandwidth_mbps_(kNaN)
+  , unconfirmed_drop_(kNaN)
 {
 }
 
-void LinkEstimator::sent(uint32_t seq, double t, uint32_t bytes, bool bulk)
+void LinkEstimator::sent(uint32_t seq, double t, uint32_t bytes, ProbeKind kind)
 {
-  pending_[seq] = Pending{t, bytes, bulk};
+  pending_[seq] = Pending{t, bytes, kind};
 }
 
 void LinkEstimator::record(double rtt)
@@ -38,21 +39,23 @@ void LinkEstimator::record(double rtt)
     results_.pop_front();
 }
 
-void LinkEstimator::answered(uint32_t seq, double t)
+ProbeKind LinkEstimator::answered(uint32_t seq, double t)
 {
   const auto it = pending_.find(seq);
   if (it == pending_.end())
-    return;
+    return ProbeKind::kSmall;
   const Pending p = it->second;
   pending_.erase(it);
   const double rtt = std::max(0.0, t - p.t);
   last_answer_t_ = t;
-  if (!p.bulk)
+  if (p.kind == ProbeKind::kSmall)
   {
     last_rtt_ = rtt;
     record(rtt);
-    return;
+    return p.kind;
   }
+  if (p.kind == ProbeKind::kWarmUp)
+    return p.kind;
   // The link's floor (the least recent RTT), not the mean: the echo runs on a busy robot, and
   // a mean that holds its scheduling delays can exceed the delay this probe met, which read a
   // 27 Mbit/s link as 36. With the floor, such delays count as transfer time: the estimate
@@ -66,12 +69,29 @@ void LinkEstimator::answered(uint32_t seq, double t)
   // 50 us floor: on loopback the difference is within timer noise and would divide by ~0.
   const double transfer = std::max(rtt - small, 50e-6);
   const double mbps = 8.0 * double(p.bytes) / transfer / 1e6;
-  // A drop is taken at once and a rise smoothed: the estimate is used to decide whether a node
-  // must move back before its stream stalls, so it must never lag behind a falling link.
-  if (std::isnan(bandwidth_mbps_) || mbps < bandwidth_mbps_)
+  if (std::isnan(bandwidth_mbps_))
+  {
     bandwidth_mbps_ = mbps;
-  else
+  }
+  else if (mbps >= bandwidth_mbps_)
+  {
     bandwidth_mbps_ = smoothing_ * mbps + (1.0 - smoothing_) * bandwidth_mbps_;
+    unconfirmed_drop_ = kNaN;
+  }
+  else if (std::isnan(unconfirmed_drop_))
+  {
+    // A drop waits for one confirming probe, sent at once (confirmationWanted). Delays at the
+    // echo only ever lower a reading, and an echo on a robot held at its CPU quota waits out
+    // the throttled part of a CFS period now and then. Two such delays in a row are rarer, and a
+    // real drop shows in both readings: it is believed one probe period (0.5 s) later.
+    unconfirmed_drop_ = mbps;
+  }
+  else
+  {
+    bandwidth_mbps_ = std::max(mbps, unconfirmed_drop_);
+    unconfirmed_drop_ = kNaN;
+  }
+  return p.kind;
 }
 
 void LinkEstimator::expire(double now)
@@ -80,8 +100,14 @@ void LinkEstimator::expire(double now)
   {
     if (now - it->second.t > timeout_s_)
     {
-      if (!it->second.bulk)
+      if (it->second.kind == ProbeKind::kSmall)
         record(kNaN);
+      else if (!std::isnan(unconfirmed_drop_))
+      {
+        // The confirming probe was lost: the link is worse than the drop said, not better.
+        bandwidth_mbps_ = unconfirmed_drop_;
+        unconfirmed_drop_ = kNaN;
+      }
       it = pending_.erase(it);
     }
     else
@@ -101,7 +127,7 @@ LinkSample LinkEstimator::stats(double now)
   // A link that was lost has shown nothing since: the estimate from before the loss (another
   // place, another access point) must not stand for it until the next bulk probe answers.
   if (!s.up)
-    bandwidth_mbps_ = kNaN;
+    bandwidth_mbps_ = unconfirmed_drop_ = kNaN;
   s.bandwidth_mbps = bandwidth_mbps_;
   double sum = 0.0;
   std::size_t answered = 0;

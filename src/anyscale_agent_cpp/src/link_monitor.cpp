@@ -48,7 +48,10 @@ void LinkMonitor::onEcho(const anyscale_msgs::LinkProbe::ConstPtr& echo)
   if (echo->scale != scale_)
     return;
   std::lock_guard<std::mutex> lock(mutex_);
-  estimator_.answered(echo->seq, now());
+  const double t = now();
+  // The warm-up's echo: the window is open, the measured probe goes out before it can close.
+  if (estimator_.answered(echo->seq, t) == ProbeKind::kWarmUp)
+    send(t, ProbeKind::kBulk);
 }
 
 void LinkMonitor::onTimer(const ros::SteadyTimerEvent&)
@@ -62,20 +65,31 @@ void LinkMonitor::onTimer(const ros::SteadyTimerEvent&)
   if (!connected)
   {
     if (peer_seen_)
-      estimator_.sent(++seq_, t, 0, false);
+      estimator_.sent(++seq_, t, 0, ProbeKind::kSmall);
     return;
   }
+  const bool bulk_due = t - last_bulk_ >= options_.bulk_period_s || estimator_.confirmationWanted();
+  // A bulk probe only when nothing is in flight, so neither waits behind the other.
+  if (options_.bulk_bytes > 0 && bulk_due && !estimator_.outstanding())
+  {
+    last_bulk_ = t;
+    send(t, ProbeKind::kWarmUp);
+  }
+  else
+  {
+    send(t, ProbeKind::kSmall);
+  }
+}
+
+void LinkMonitor::send(double t, ProbeKind kind)
+{
   anyscale_msgs::LinkProbe probe;
   probe.scale = scale_;
   probe.seq = ++seq_;
-  // A bulk probe only when nothing is in flight, so neither waits behind the other.
-  probe.bulk = options_.bulk_bytes > 0 && t - last_bulk_ >= options_.bulk_period_s && !estimator_.outstanding();
+  probe.bulk = kind != ProbeKind::kSmall;
   if (probe.bulk)
-  {
     probe.payload.resize(std::size_t(options_.bulk_bytes));
-    last_bulk_ = t;
-  }
-  estimator_.sent(probe.seq, t, uint32_t(probe.payload.size()), probe.bulk);
+  estimator_.sent(probe.seq, t, uint32_t(probe.payload.size()), kind);
   pub_.publish(probe);
 }
 

@@ -1,6 +1,7 @@
 // Link state to the master scale from probe round trips: up/down, RTT, loss, bandwidth (no ROS).
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <deque>
@@ -23,11 +24,26 @@ struct LinkSample
 // Small probes give RTT and loss; a bulk probe of B bytes, whose echo is small, takes about
 // RTT + B / bandwidth, so bandwidth ~ 8 B / (RTT_bulk - RTT_floor), RTT_floor being the least
 // RTT of the recent small probes. A link that is lost forgets its bandwidth: until the next
-// bulk probe answers, it is unknown (NaN). This is a packet-train
-// estimate on the same TCP connection the data uses, not a saturation test: it costs B bytes
-// per bulk period, and it reads low while TCP's window is still opening (slow start after idle).
-// A lower estimate replaces the current one at once; a higher one is blended in with
-// `bandwidth_smoothing` (the weight of the new value).
+// bulk probe answers, it is unknown (NaN). This is a packet-train estimate on the same TCP
+// connection the data uses, not a saturation test.
+//
+// Each measured bulk probe follows a warm-up probe of the same size, sent when the warm-up's echo
+// comes back. Linux restarts TCP's slow start on a connection idle for longer than its RTO
+// (tcp_slow_start_after_idle, RFC 2861), and small probes every 0.5 s leave it idle that long:
+// a lone 64 KB probe then crossed a 27 Mbit/s link in three round trips and read 6-7 Mbit/s for
+// a whole run, which kept AR on the robot. The warm-up opens the window; its reading is not used.
+// It costs 2 B per bulk period.
+//
+// A higher reading is blended in with `bandwidth_smoothing` (the weight of the new value); a
+// lower one is confirmed first: the next bulk probe goes out at once (confirmationWanted) and the
+// estimate falls to the higher of the two readings (or to the first, if the second is lost).
+enum class ProbeKind
+{
+  kSmall,   // RTT and loss
+  kWarmUp,  // bulk, opens TCP's window; not measured
+  kBulk,    // bulk, measured
+};
+
 class LinkEstimator
 {
 public:
@@ -35,10 +51,13 @@ public:
   // `history` small probes; the link is down when nothing was answered for `timeout_s`.
   explicit LinkEstimator(double timeout_s = 1.0, std::size_t history = 20, double bandwidth_smoothing = 0.5);
 
-  void sent(uint32_t seq, double t, uint32_t bytes, bool bulk);
-  void answered(uint32_t seq, double t);  // unknown or already expired seqs are ignored
+  void sent(uint32_t seq, double t, uint32_t bytes, ProbeKind kind);
+  // What was answered: unknown or already expired seqs are ignored (kSmall is returned).
+  ProbeKind answered(uint32_t seq, double t);
   LinkSample stats(double now);
   bool outstanding() const { return !pending_.empty(); }
+  // A lower bandwidth reading awaits a second bulk probe before the estimate follows it.
+  bool confirmationWanted() const { return !std::isnan(unconfirmed_drop_); }
 
 private:
   void expire(double now);
@@ -48,7 +67,7 @@ private:
   {
     double t;
     uint32_t bytes;
-    bool bulk;
+    ProbeKind kind;
   };
   double timeout_s_;
   std::size_t history_;
@@ -58,6 +77,7 @@ private:
   double last_rtt_;
   double last_answer_t_;
   double bandwidth_mbps_;
+  double unconfirmed_drop_;  // a lower reading not yet confirmed; NaN if none
 };
 
 }  // namespace anyscale_agent

@@ -35,6 +35,7 @@ private:
   void onProbe(const anyscale_msgs::LinkProbe::ConstPtr& probe);  // on the master: echo it
   void onEcho(const anyscale_msgs::LinkProbe::ConstPtr& echo);     // elsewhere: an answer
   void onTimer(const ros::SteadyTimerEvent&);
+  void send(double t, ProbeKind kind);  // with mutex_ held
   static double now();
 
   std::string scale_;

@@ -8,7 +8,11 @@ Root, with the workspace sourced; options: --help.
 import os
 import sys
 
-from anyscale_testbed.evaluation_run import main
+try:
+    from anyscale_testbed.evaluation_run import main
+except ImportError as e:
+    sys.exit(f"{os.path.basename(__file__)}: {e}: source this workspace first "
+             "(source devel/setup.bash; scripts/setup.sh installs and builds it)")
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

@@ -7,7 +7,11 @@ Run with the workspace sourced (scripts/run_demo.sh does that); options: --help.
 import os
 import sys
 
-from anyscale_testbed.demo_run import main
+try:
+    from anyscale_testbed.demo_run import main
+except ImportError as e:
+    sys.exit(f"{os.path.basename(__file__)}: {e}: source this workspace first "
+             "(source devel/setup.bash; scripts/setup.sh installs and builds it)")
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

@@ -105,6 +105,7 @@ class DecisionNode(AgentActions):
         self.link_up: Dict[str, bool] = {}    # remote scale -> up, as of the latest tick
         self.statuses: Dict[str, ScaleStatus] = {}
         self.violating: List[str] = []
+        self.state = None                     # DynamicState of the latest tick
         self.watch_sent: Dict[str, tuple] = {}
         self.starting = set()                 # (node, scale) of starts not yet answered
         self.agents = AgentClient(params.service_timeout_s, params.stop_timeout_s,
@@ -120,11 +121,17 @@ class DecisionNode(AgentActions):
         self.mapping_pub = rospy.Publisher("/anyscale/mapping", MappingMsg, queue_size=1,
                                            latch=True)
         self.event_pub = rospy.Publisher("/anyscale/events", MigrationEvent, queue_size=50)
+        # diagnostic_updater reads ~diagnostic_period with get_param_cached on every update: a
+        # parameter that is not on the server is asked of the master each time, and the decision
+        # node died with a traceback in the seconds the master was gone (a roscore restart, a
+        # teardown). Set, it is answered from rospy's cache.
+        rospy.set_param("~diagnostic_period", rospy.get_param("~diagnostic_period", 1.0))
         self.updater = diagnostic_updater.Updater()
         self.updater.setHardwareID("anyscale_decision")
         self.updater.add("mapping", self._diag_mapping)
         self.updater.add("connections", self._diag_connections)
         self.updater.add("scales", self._diag_scales)
+        self.updater.add("link and load", self._diag_link_and_load)
         rospy.Subscriber("/anyscale/status", ScaleStatus, self._on_status, queue_size=20)
         for node in self.model.nodes:
             if node.state_handoff is not None and node.state_handoff.kind == "pose":
@@ -173,6 +180,7 @@ class DecisionNode(AgentActions):
                                           moves_allowed=not coming_up,
                                           starting={n for n, _ in self.starting})
                 self.violating = result.violating
+                self.state = result.state
                 self.link_up = dict(result.state.link_up)
             self._dispatch(result, before)
             self._send_watch_lists()
@@ -285,6 +293,21 @@ class DecisionNode(AgentActions):
             stat.summary(DiagnosticStatus.WARN, "below freq_min: " + ", ".join(violating))
         else:
             stat.summary(DiagnosticStatus.OK, "every judged connection within its tolerance")
+        return stat
+
+    def _diag_link_and_load(self, stat):
+        """What the allocator judged the last tick on: why a node does or does not move out."""
+        with self.lock:
+            state = self.state
+        if state is None:
+            stat.summary(DiagnosticStatus.OK, "no decision yet")
+            return stat
+        stat.summary(DiagnosticStatus.OK, f"link {state.bandwidth_mbps:.1f} Mbit/s, "
+                     f"{state.admit_bandwidth_mbps:.1f} held for moves out")
+        for s in self.ch.scale_names:
+            stat.add(f"{s} background load [%]", f"{state.scale_load.get(s, 0.0):.0f}")
+            if s != self.master:
+                stat.add(f"{s} link", "up" if state.link_up.get(s, True) else "down")
         return stat
 
     def _diag_scales(self, stat):

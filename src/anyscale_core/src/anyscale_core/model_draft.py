@@ -25,8 +25,8 @@ LEFT_OUT_NODES = ("/rosout",)
 DRAFT_NODE = "/anyscale_model_draft"
 # argv[0] of a process that runs a script: the script is the first argument that is no option.
 _INTERPRETER = re.compile(r"^(python[0-9.]*|bash|sh|dash|perl|ruby|node)$")
-# roslaunch's and rosrun's special arguments: the name comes from the graph, the rest is set by
-# whoever launches the node (the agent sets __name and __ns itself).
+# roslaunch's and rosrun's special arguments: the name and namespace come from the graph, the
+# rest is set by whoever launches the node (the agent sets __name and __ns itself).
 _SPECIAL_ARG = re.compile(r"^__[a-z]+:=")
 _REMAP = re.compile(r"^([A-Za-z~/][A-Za-z0-9_/~]*):=(.*)$")
 _PRIVATE_PARAM = re.compile(r"^_([A-Za-z][A-Za-z0-9_]*):=(.*)$")
@@ -159,18 +159,15 @@ class LaunchArgs:
     args: Tuple[str, ...]
     remaps: Tuple[Tuple[str, str], ...]
     params: Tuple[Tuple[str, object], ...]
-    namespace: Optional[str]     # __ns:= given on the command line
 
 
 def launch_args(cmdline: Sequence[str]) -> LaunchArgs:
     """The arguments after the executable, split as rosrun reads them: `from:=to` remaps,
     `_param:=value` private parameters (value read as YAML, as rosrun does), __special:= dropped
-    (roslaunch's __name and __log; the agent sets the name itself), the rest plain args."""
-    args, remaps, params, namespace = [], [], [], None
+    (roslaunch's __name, __ns and __log), the rest plain args."""
+    args, remaps, params = [], [], []
     for arg in cmdline[executable_index(cmdline) + 1:]:
-        if arg.startswith("__ns:="):
-            namespace = arg[len("__ns:="):]
-        elif _SPECIAL_ARG.match(arg):
+        if _SPECIAL_ARG.match(arg):
             continue
         elif _PRIVATE_PARAM.match(arg):
             name, value = _PRIVATE_PARAM.match(arg).groups()
@@ -179,7 +176,7 @@ def launch_args(cmdline: Sequence[str]) -> LaunchArgs:
             remaps.append(_REMAP.match(arg).groups())
         else:
             args.append(arg)
-    return LaunchArgs(tuple(args), tuple(remaps), tuple(params), namespace)
+    return LaunchArgs(tuple(args), tuple(remaps), tuple(params))
 
 
 def _yaml_value(text: str) -> object:
@@ -298,11 +295,11 @@ def _scales(machine: Optional[Machine], master: str, remote: str) -> List[str]:
 
 def _node(info: NodeInfo, name: str, scales: Sequence[str],
           connections: Sequence[DraftConnection]) -> List[str]:
-    lines = [f"  - name: {name}" + (f"      # ROS name {info.name}"
-                                    if "/" + name != info.name else "")]
+    lines = [f"  - name: {name}"]
     if "/" + name != info.name:
-        lines.append(f"    # TODO: the model runs nodes in the root namespace as {name}; "
-                     "check the remaps below")
+        # A namespace on the command line (__ns:=) is part of the ROS name, so it is said here.
+        lines.append(f"    # TODO: ROS name {info.name}; AnyScale starts it as /{name} (a model has "
+                     "no namespaces or '__'): check its relative names")
     if not any(info.name in (c.publisher, c.subscriber) for c in connections):
         lines.append("    # no connection to another node when drafted")
     lines += _launch(info)
@@ -337,9 +334,6 @@ def _launch(info: NodeInfo) -> List[str]:
         lines.append(f"      remaps: {_flow(dict(spec.remaps))}")
     if spec.params:
         lines.append(f"      params: {_flow(dict(spec.params))}")
-    if spec.namespace:
-        lines.append(f"      # TODO: started in namespace {spec.namespace}; relative names "
-                     "resolve in the root namespace under AnyScale")
     return lines
 
 

@@ -14,6 +14,8 @@ from anyscale_core.model_draft import (TODO, GraphSnapshot, Machine, NodeInfo, R
                                        package_of_executable)
 from anyscale_core.model_loader import parse_model
 
+from core_test_data import filled_draft
+
 TALKER_CMD = ("/usr/bin/python3", "/usr/bin/rostopic", "pub", "-r", "10", "/chatter",
               "std_msgs/String", "data: hi", "__name:=talker", "__log:=/tmp/talker.log")
 RELAY_CMD = ("/usr/lib/topic_tools/relay", "/chatter", "/chatter_relay", "__name:=relay")
@@ -180,33 +182,9 @@ def test_the_draft_is_refused_until_its_todos_are_filled():
         parse_model(drafted())
 
 
-def filled(model: dict) -> dict:
-    """The draft with every TODO replaced as a user would: a laptop, CPU shares, and the map
-    connection critical (tolerance 0)."""
-    values = {"cpu_ghz": 2.8, "cores": 4, "memory_mb": 4096, "alpha": 3.5,
-              "technology": "802.11g", "max_bandwidth_mbps": 54, "pinned": "robot",
-              "package": "my_pkg", "type": "tool", "freq_opt": 1, "tolerance": 2}
-
-    def fill(tree, **overrides):
-        for key, value in list(tree.items()):
-            if isinstance(value, dict):
-                fill(value)
-            elif value == TODO:
-                tree[key] = overrides.get(key, values.get(key, 5))
-    for entry in model["scales"]:
-        fill(entry)
-    for entry in model["nodes"]:
-        fill(entry, memory_mb=60)
-    fill(model["network"])
-    for c in model["connections"]:
-        fill(c, freq_min=min(1, c["freq_opt"]) if c["freq_opt"] != TODO else 1,
-             tolerance=0 if c["topic"] == "/map" else 2)
-    return model
-
-
 def test_a_filled_draft_passes_check_and_plan(tmp_path, capsys):
     path = tmp_path / "drafted.yaml"
-    path.write_text(yaml.safe_dump(filled(drafted())))
+    path.write_text(yaml.safe_dump(filled_draft(drafted(), critical_topics={"/map"})))
     assert "TODO" not in path.read_text()
     assert main(["check", str(path)]) == 0
     out = capsys.readouterr().out
@@ -265,3 +243,12 @@ def test_bad_seconds_exit_2_with_one_line(tmp_path, capsys, seconds):
     assert main(["model", "draft", str(tmp_path / "m.yaml"), "--seconds", seconds]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("anyscale model draft: error: --seconds:")
+
+
+def test_help_has_an_example(capsys):
+    with pytest.raises(SystemExit) as done:
+        main(["model", "draft", "--help"])
+    assert done.value.code == 0
+    out = capsys.readouterr().out
+    assert out.startswith("usage: anyscale model draft")
+    assert "anyscale model draft my_robot.yaml --seconds 10" in out

@@ -187,7 +187,8 @@ def _yaml_value(text: str) -> object:
 
 
 def package_of_executable(path: str, package_dirs: Mapping[str, str],
-                          lib_executables: Mapping[str, Sequence[str]]) -> Optional[Tuple[str, str]]:
+                          lib_executables: Mapping[str, Sequence[str]]
+                          ) -> Optional[Tuple[str, str]]:
     """(package, executable) that `rosrun` would start for the file at `path`, or None.
     package_dirs: package -> its directory; lib_executables: executable name -> the packages
     that install one of that name in <prefix>/lib/<package>/ (where the agent looks first).
@@ -298,8 +299,8 @@ def _node(info: NodeInfo, name: str, scales: Sequence[str],
     lines = [f"  - name: {name}"]
     if "/" + name != info.name:
         # A namespace on the command line (__ns:=) is part of the ROS name, so it is said here.
-        lines.append(f"    # TODO: ROS name {info.name}; AnyScale starts it as /{name} (a model has "
-                     "no namespaces or '__'): check its relative names")
+        lines.append(f"    # TODO: ROS name {info.name}; AnyScale starts it as /{name} (a model "
+                     "has no namespaces or '__'): check its relative names")
     if not any(info.name in (c.publisher, c.subscriber) for c in connections):
         lines.append("    # no connection to another node when drafted")
     lines += _launch(info)

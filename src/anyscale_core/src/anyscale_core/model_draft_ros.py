@@ -14,7 +14,7 @@ import socket
 import time
 import xmlrpc.client
 from collections import defaultdict
-from typing import Dict, List, Mapping, Optional, Sequence, Set, Tuple
+from typing import Dict, List, Optional, Sequence, Set, Tuple
 from urllib.parse import urlparse
 
 from .model import ModelError

@@ -69,3 +69,27 @@ def random_systems(draw, **kwargs):
     """(Characterisation, DynamicState-like dict) for property tests."""
     model = parse_model(draw(random_model_dicts(**kwargs)), "<random>")
     return characterise(model)
+
+
+def filled_draft(model: dict, critical_topics=()) -> dict:
+    """A draft of `anyscale model draft` (its YAML tree) with every TODO replaced as a user
+    would: a laptop, CPU shares, 1 Hz minimum rates, tolerance 0 on critical_topics, else 2 s."""
+    values = {"cpu_ghz": 2.8, "cores": 4, "memory_mb": 4096, "alpha": 3.5,
+              "technology": "802.11g", "max_bandwidth_mbps": 54, "pinned": "robot",
+              "package": "my_pkg", "type": "tool", "freq_opt": 1, "tolerance": 2}
+
+    def fill(tree, **overrides):
+        for key, value in list(tree.items()):
+            if isinstance(value, dict):
+                fill(value)
+            elif value == "TODO":
+                tree[key] = overrides.get(key, values.get(key, 5))
+    for entry in model["scales"]:
+        fill(entry)
+    for entry in model["nodes"]:
+        fill(entry, memory_mb=60)
+    fill(model["network"])
+    for c in model["connections"]:
+        fill(c, freq_min=min(1, c["freq_opt"]) if c["freq_opt"] != "TODO" else 1,
+             tolerance=0 if c["topic"] in critical_topics else 2)
+    return model

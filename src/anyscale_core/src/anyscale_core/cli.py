@@ -1,5 +1,5 @@
 """The `anyscale` command line: check a model, plan one decision, run the Fig. 7 simulation,
-watch a running system (top).
+watch a running system (top), draft a model from a running graph (model draft).
 
 Errors in the user's files are printed as one line naming the file and key, exit status 2.
 `simulate` lives in the anyscale_study package, which a robot does not need: it is imported
@@ -7,6 +7,7 @@ only when the command runs, and where it is missing the command says what to ins
 """
 import argparse
 import json
+import os
 import sys
 from typing import List, Optional
 
@@ -71,6 +72,32 @@ def build_parser() -> argparse.ArgumentParser:
     top.add_argument("--period", type=float, default=1.0, metavar="S",
                      help="refresh period in seconds (default: 1)")
     top.set_defaults(run=run_top)
+
+    model = sub.add_parser("model", help="write system models: `anyscale model draft`",
+                           description="Commands that write system models.")
+    model_sub = model.add_subparsers(dest="model_command", metavar="MODEL_COMMAND")
+    model_sub.required = True
+    draft = model_sub.add_parser(
+        "draft", help="draft a model YAML from the running ROS graph",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Draft a system model from the running ROS graph: every node (package, "
+                    "executable,\nargs and remaps read from /proc/PID/cmdline for nodes on this "
+                    "machine), every\nconnection (publisher, subscriber, topic) with the rate and "
+                    "bytes/s counted here for\n--seconds as a first freq_opt and bandwidth_mbps, "
+                    "and TODO at every value a human must\ndecide (freq_min, tolerance, pinned "
+                    "drivers, scales, cpu_usage). /rosout and AnyScale's\nown nodes are left out. "
+                    "Once the TODOs are filled, `anyscale check OUTPUT` accepts it.",
+        epilog="example:\n  roslaunch my_robot robot.launch &\n"
+               "  anyscale model draft my_robot.yaml --seconds 10\n"
+               "  $EDITOR my_robot.yaml      # replace every TODO\n"
+               "  anyscale check my_robot.yaml")
+    draft.add_argument("output", metavar="OUTPUT",
+                       help="model YAML to write ('-': standard output); an existing file is "
+                            "kept unless --force")
+    draft.add_argument("--seconds", type=float, default=5.0, metavar="N",
+                       help="how long to count each connection's messages (default: 5)")
+    draft.add_argument("--force", action="store_true", help="overwrite OUTPUT if it exists")
+    draft.set_defaults(run=run_model_draft, command="model draft")
     return parser
 
 
@@ -172,6 +199,31 @@ def run_top(args) -> int:
     # Imported here: check, plan and simulate must work without ROS installed.
     from . import top_view
     return top_view.run(args.model, args.once, max(args.period, 0.1))
+
+
+def run_model_draft(args) -> int:
+    if not 0 < args.seconds <= 3600:
+        raise ModelError("--seconds", "", f"expected seconds in (0, 3600], got {args.seconds:g}")
+    if args.output != "-" and os.path.exists(args.output) and not args.force:
+        raise ModelError(args.output, "", "exists; give --force to overwrite it")
+    # Imported here: check, plan and simulate must work without ROS installed.
+    from .model_draft import draft_model
+    from .model_draft_ros import collect_snapshot
+    text = draft_model(collect_snapshot(args.seconds))
+    if args.output == "-":
+        sys.stdout.write(text)
+        return 0
+    try:
+        # "x" refuses a file that appeared while the graph was counted.
+        with open(args.output, "w" if args.force else "x", encoding="utf-8") as f:
+            f.write(text)
+    except FileExistsError:
+        raise ModelError(args.output, "", "exists; give --force to overwrite it") from None
+    except OSError as e:
+        raise ModelError(args.output, "", f"cannot write: {e.strerror}") from None
+    print(f"{args.output}: drafted; replace every TODO, then: anyscale check {args.output}",
+          file=sys.stderr)
+    return 0
 
 
 def main(argv: Optional[List[str]] = None) -> int:

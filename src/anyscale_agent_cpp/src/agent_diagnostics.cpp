@@ -56,6 +56,8 @@ void AgentNode::diagnoseLink(diagnostic_updater::DiagnosticStatusWrapper& stat)
   stat.add("rtt_mean_s", l.rtt_mean_s);
   stat.add("loss_ratio", l.loss_ratio);
   stat.add("bandwidth_mbps", l.bandwidth_mbps);
+  if (!is_master_)
+    stat.add("bandwidth measured by", link_->bandwidthMethod());
   stat.add("uplink_interface", l.uplink_interface);
   stat.add("carrier", bool(l.carrier));
 }

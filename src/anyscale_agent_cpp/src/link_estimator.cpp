@@ -68,7 +68,14 @@ ProbeKind LinkEstimator::answered(uint32_t seq, double t)
     small = 0.0;
   // 50 us floor: on loopback the difference is within timer noise and would divide by ~0.
   const double transfer = std::max(rtt - small, 50e-6);
-  const double mbps = 8.0 * double(p.bytes) / transfer / 1e6;
+  addBandwidthReading(8.0 * double(p.bytes) / transfer / 1e6);
+  return p.kind;
+}
+
+void LinkEstimator::addBandwidthReading(double mbps)
+{
+  if (std::isnan(mbps))
+    return;
   if (std::isnan(bandwidth_mbps_))
   {
     bandwidth_mbps_ = mbps;
@@ -91,7 +98,6 @@ ProbeKind LinkEstimator::answered(uint32_t seq, double t)
     bandwidth_mbps_ = std::max(mbps, unconfirmed_drop_);
     unconfirmed_drop_ = kNaN;
   }
-  return p.kind;
 }
 
 void LinkEstimator::expire(double now)

@@ -26,7 +26,65 @@ LinkMonitor::LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, 
   // A short queue: probes queued behind a dead link are stale by the time it returns.
   pub_ = nh.advertise<anyscale_msgs::LinkProbe>("/anyscale/link/probe", 2);
   sub_ = nh.subscribe("/anyscale/link/echo", 20, &LinkMonitor::onEcho, this, hints);
+  if (options_.bulk_bytes > 0 && !options_.icmp)
+  {
+    bandwidth_method_ = "ROS probes echoed by the master's agent (~link_bandwidth_by_icmp false)";
+    ROS_INFO("link bandwidth by %s", bandwidth_method_.c_str());
+  }
+  else if (options_.bulk_bytes > 0)
+  {
+    // The master scale's machine is the master's host.
+    try
+    {
+      icmp_ = std::make_unique<IcmpEcho>(ros::master::getHost());
+      bandwidth_method_ = "ICMP echo to " + icmp_->address();
+      icmp_thread_ = std::thread(&LinkMonitor::measureByEcho, this);
+    }
+    catch (const std::exception& e)
+    {
+      icmp_.reset();
+      bandwidth_method_ = std::string("ROS probes echoed by the master's agent (they read low while it waits for "
+                                      "the CPU): ") + e.what();
+    }
+    ROS_INFO("link bandwidth by %s", bandwidth_method_.c_str());
+  }
   timer_ = nh.createSteadyTimer(ros::WallDuration(options_.probe_period_s), &LinkMonitor::onTimer, this);
+}
+
+LinkMonitor::~LinkMonitor()
+{
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;
+  }
+  wake_icmp_.notify_all();
+  if (icmp_thread_.joinable())
+    icmp_thread_.join();
+}
+
+void LinkMonitor::measureByEcho()
+{
+  uint16_t seq = 0;
+  std::unique_lock<std::mutex> lock(mutex_);
+  while (!stopping_)
+  {
+    // A lower reading is confirmed at the next probe period, not a bulk period later.
+    const double wait_s = estimator_.confirmationWanted() ? options_.probe_period_s : options_.bulk_period_s;
+    if (wake_icmp_.wait_for(lock, std::chrono::duration<double>(wait_s), [this] { return stopping_; }))
+      break;
+    lock.unlock();
+    double mbps = std::numeric_limits<double>::quiet_NaN();
+    try
+    {
+      mbps = measureEchoBandwidth(*icmp_, std::size_t(options_.bulk_bytes), options_.timeout_s, &seq);
+    }
+    catch (const std::exception& e)
+    {
+      ROS_WARN_THROTTLE(60.0, "link bandwidth: %s", e.what());
+    }
+    lock.lock();
+    estimator_.addBandwidthReading(mbps);
+  }
 }
 
 double LinkMonitor::now()
@@ -70,7 +128,7 @@ void LinkMonitor::onTimer(const ros::SteadyTimerEvent&)
   }
   const bool bulk_due = t - last_bulk_ >= options_.bulk_period_s || estimator_.confirmationWanted();
   // A bulk probe only when nothing is in flight, so neither waits behind the other.
-  if (options_.bulk_bytes > 0 && bulk_due && !estimator_.outstanding())
+  if (!icmp_ && options_.bulk_bytes > 0 && bulk_due && !estimator_.outstanding())
   {
     last_bulk_ = t;
     send(t, ProbeKind::kWarmUp);

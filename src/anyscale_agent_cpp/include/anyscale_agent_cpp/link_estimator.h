@@ -54,6 +54,8 @@ public:
   void sent(uint32_t seq, double t, uint32_t bytes, ProbeKind kind);
   // What was answered: unknown or already expired seqs are ignored (kSmall is returned).
   ProbeKind answered(uint32_t seq, double t);
+  // A bandwidth reading from elsewhere (an ICMP echo); NaN is ignored.
+  void addBandwidthReading(double mbps);
   LinkSample stats(double now);
   bool outstanding() const { return !pending_.empty(); }
   // A lower bandwidth reading awaits a second bulk probe before the estimate follows it.

@@ -6,9 +6,13 @@
 #include <anyscale_msgs/LinkProbe.h>
 #include <anyscale_msgs/LinkStatistics.h>
 
+#include <condition_variable>
+#include <memory>
 #include <mutex>
 #include <string>
+#include <thread>
 
+#include "anyscale_agent_cpp/icmp_echo.h"
 #include "anyscale_agent_cpp/link_estimator.h"
 
 namespace anyscale_agent
@@ -18,8 +22,9 @@ struct LinkOptions
 {
   double probe_period_s = 0.5;
   double timeout_s = 1.0;
-  int bulk_bytes = 65536;
-  double bulk_period_s = 5.0;
+  int bulk_bytes = 32768;
+  double bulk_period_s = 2.0;
+  bool icmp = true;  // bulk probes by ICMP echo where the kernel allows it; false: over ROS
 };
 
 // Topics, not a service: a roscpp service call has no timeout and would block for as long as
@@ -29,13 +34,17 @@ class LinkMonitor
 {
 public:
   LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, std::string master_scale, LinkOptions options);
+  ~LinkMonitor();
   anyscale_msgs::LinkStatistics stats();
+  // "ICMP echo to ADDRESS" or "ROS probes" (and why): how the bandwidth is measured.
+  const std::string& bandwidthMethod() const { return bandwidth_method_; }
 
 private:
   void onProbe(const anyscale_msgs::LinkProbe::ConstPtr& probe);  // on the master: echo it
   void onEcho(const anyscale_msgs::LinkProbe::ConstPtr& echo);     // elsewhere: an answer
   void onTimer(const ros::SteadyTimerEvent&);
   void send(double t, ProbeKind kind);  // with mutex_ held
+  void measureByEcho();                 // the ICMP thread's loop
   static double now();
 
   std::string scale_;
@@ -50,6 +59,13 @@ private:
   uint32_t seq_ = 0;
   double last_bulk_ = -1e9;
   bool peer_seen_ = false;
+  std::string bandwidth_method_;
+  // Bulk probes by ICMP echo where the kernel lets this process send them (see icmp_echo.h),
+  // in a thread of their own: a reading blocks for up to two timeouts.
+  std::unique_ptr<IcmpEcho> icmp_;
+  std::condition_variable wake_icmp_;
+  bool stopping_ = false;
+  std::thread icmp_thread_;
 };
 
 }  // namespace anyscale_agent

@@ -1,0 +1,65 @@
+// ICMP echo to one IPv4 host with the kernel's receive timestamps (no ROS).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "anyscale_agent_cpp/unique_fd.h"
+
+namespace anyscale_agent
+{
+
+// Why ICMP for the bandwidth: the peer's kernel answers an echo request in softirq context, where
+// neither the peer's CPU quota nor its busy processes can delay the answer, and SO_TIMESTAMPNS
+// dates the reply when it arrived, not when this process got to read it. A probe echoed by the
+// master's agent over ROS waited for that agent to be scheduled: on a robot held at its quota by
+// its own nodes (throttled in 272 of 281 CFS periods, measured), 64 KB read 5 Mbit/s on a
+// 27 Mbit/s link for whole runs. Nothing in ROS or Debian's libraries offers a timestamped echo
+// (liboping and fping time in user space), hence this small class.
+class IcmpEcho
+{
+public:
+  // Resolves `host` (IPv4) and opens a ping socket: SOCK_DGRAM where net.ipv4.ping_group_range
+  // admits this process's group, else SOCK_RAW (root or CAP_NET_RAW). Throws std::runtime_error
+  // saying which and why when neither opens.
+  explicit IcmpEcho(const std::string& host);
+
+  // Sends echo request `seq` with `payload_bytes` of payload (at most kMaxPayload); returns the
+  // send time [s, CLOCK_REALTIME, the clock of the receive timestamps]. Throws on a send error.
+  double send(uint16_t seq, std::size_t payload_bytes);
+
+  // Echo replies to this object's requests that have arrived, without blocking:
+  // (seq, kernel receive time [s, CLOCK_REALTIME]).
+  std::vector<std::pair<uint16_t, double>> receive();
+
+  int fd() const { return fd_.get(); }
+  const std::string& address() const { return address_; }
+  bool raw() const { return raw_; }
+
+  static constexpr std::size_t kMaxPayload = 65000;  // an IPv4 datagram holds 65507
+
+private:
+  UniqueFd fd_;
+  std::string address_;
+  uint32_t peer_ = 0;  // network byte order
+  uint16_t id_ = 0;
+  bool raw_ = false;
+  std::vector<uint8_t> buffer_;
+};
+
+}  // namespace anyscale_agent
+
+namespace anyscale_agent
+{
+
+// One bandwidth reading [Mbit/s] from a small echo (the path's floor) and then one of
+// `bulk_bytes`, each awaited for at most `timeout_s`; NaN if either went unanswered. The reply
+// is as large as the request, so the reading is the harmonic mean of the two directions:
+// 2 * 8 B / (RTT_bulk - RTT_small); a bulk echo unanswered within the timeout reads as if it had
+// taken the timeout. Blocks for up to 2 * timeout_s.
+double measureEchoBandwidth(IcmpEcho& echo, std::size_t bulk_bytes, double timeout_s, uint16_t* seq);
+
+}  // namespace anyscale_agent

@@ -1,0 +1,72 @@
+// gtest: ICMP echo with kernel receive timestamps, on loopback (needs root or ping sockets).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+#include <unistd.h>
+
+#include "anyscale_agent_cpp/icmp_echo.h"
+
+using anyscale_agent::IcmpEcho;
+
+namespace
+{
+std::unique_ptr<IcmpEcho> openOrNull(std::string* why)
+{
+  try
+  {
+    return std::make_unique<IcmpEcho>("127.0.0.1");
+  }
+  catch (const std::runtime_error& e)
+  {
+    *why = e.what();
+    return nullptr;
+  }
+}
+}  // namespace
+
+TEST(IcmpEcho, ASmallAndABulkEchoOnLoopbackGiveAFiniteBandwidth)
+{
+  std::string why;
+  auto echo = openOrNull(&why);
+  if (!echo)
+    GTEST_SKIP() << "no ICMP socket here (not root, ping sockets off): " << why;
+  uint16_t seq = 0;
+  const double mbps = anyscale_agent::measureEchoBandwidth(*echo, 60000, 1.0, &seq);
+  EXPECT_TRUE(std::isfinite(mbps));
+  EXPECT_GT(mbps, 0.0);
+  EXPECT_EQ(seq, 2);
+}
+
+TEST(IcmpEcho, RepliesCarryTheirSequenceNumberAndComeAfterTheSend)
+{
+  std::string why;
+  auto echo = openOrNull(&why);
+  if (!echo)
+    GTEST_SKIP() << "no ICMP socket here (not root, ping sockets off): " << why;
+  const double sent = echo->send(7, 1000);
+  std::vector<std::pair<uint16_t, double>> got;
+  for (int i = 0; i < 100 && got.empty(); ++i)
+  {
+    usleep(10000);
+    got = echo->receive();
+  }
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].first, 7);
+  EXPECT_GE(got[0].second, sent);
+  EXPECT_LT(got[0].second - sent, 1.0);
+}
+
+TEST(IcmpEcho, AnUnknownHostIsAClearError)
+{
+  try
+  {
+    IcmpEcho echo("no-such-host.invalid");
+    FAIL() << "resolved an invalid host";
+  }
+  catch (const std::runtime_error& e)
+  {
+    EXPECT_NE(std::string(e.what()).find("no-such-host.invalid"), std::string::npos) << e.what();
+  }
+}

@@ -180,7 +180,8 @@ class Bench:
         self.load_params(laptop)
         self.procs.append(self.popen(["roslaunch", "anyscale_nav_demo", "sim.launch"]))
         flag = "false" if laptop else "true"
-        self.procs.append(self.popen(["roslaunch", "anyscale_nav_demo", "robot.launch", "sim:=false",
+        self.procs.append(self.popen(["roslaunch", "anyscale_nav_demo", "robot.launch",
+                                      "anyscale:=false", "sim:=false",
                                       "record:=false", "world:=" + self.args.world, "amcl:=" + flag,
                                       "ar_recognition:=" + flag], group=robot))
         if laptop:

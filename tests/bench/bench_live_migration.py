@@ -118,7 +118,8 @@ def run_relay(cycles, up_s, down_s, out):
     with NamespaceBed(layout_with_cpu(0.0, 0.0)) as bed:
         session = TestbedSession(bed, out)
         robot = session.roslaunch("robot", "relay_robot", [
-            os.path.join(ROOT, "tests", "system", "relay_robot.launch"), f"model:={model}",
+            os.path.join(ROOT, "src", "anyscale_testbed", "test", "system", "relay_robot.launch"),
+            f"model:={model}",
             f"schedule:={steps}", f"record_path:={record}", f"duration_s:={duration}",
             "hysteresis_s:=5.0", f"uplink_interface:={bed.uplink_interface('robot')}"],
             wait_for_master=False)

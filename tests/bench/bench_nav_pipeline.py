@@ -60,7 +60,8 @@ def main():
         env = dict(os.environ, ROS_MASTER_URI="http://localhost:%d" % args.port)
         os.environ["ROS_MASTER_URI"] = env["ROS_MASTER_URI"]
         launch = subprocess.Popen(["roslaunch", "-p", str(args.port), "anyscale_nav_demo", "robot.launch",
-                                   "world:=" + args.world, "record:=false", "amcl_rate:=" + args.amcl_rate],
+                                   "anyscale:=false", "world:=" + args.world, "record:=false",
+                                   "amcl_rate:=" + args.amcl_rate],
                                   env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                   start_new_session=True)
     try:

@@ -1,6 +1,7 @@
 """The package's declarative files agree with its nodes: testbed.yaml, launch files, rviz config."""
 import os
 import re
+from xml.etree import ElementTree
 
 import yaml
 
@@ -40,15 +41,24 @@ def test_testbed_model_matches_the_nodes():
     assert rates[("amcl", "ekf")] == (2, 5) and rates[("odometer", "odometry")] == (10, 40)
 
 
-def test_robot_launch_names_every_model_node():
+def test_static_pipeline_names_every_model_node():
     model = load("config/testbed.yaml")
     text = ""
-    for f in ("launch/robot.launch", "launch/drivers.launch"):
+    for f in ("launch/static_pipeline.launch", "launch/drivers.launch"):
         with open(os.path.join(PKG, f)) as fh:
             text += fh.read()
     launched = dict(re.findall(r'type="([a-z_]+)" name="([a-z_]+)"', text))
     for n in model["nodes"]:
         assert launched.get(n["launch"]["type"]) == n["name"], n["name"]
+
+
+def test_every_launch_arg_a_user_can_set_is_documented():
+    # `roslaunch --ros-args` is where a user reads them; args with a fixed value are internal.
+    for name in sorted(os.listdir(os.path.join(PKG, "launch"))):
+        root = ElementTree.parse(os.path.join(PKG, "launch", name)).getroot()
+        for arg in root.findall("arg"):
+            if arg.get("value") is None:
+                assert arg.get("doc"), f"launch/{name}: arg {arg.get('name')} has no doc"
 
 
 def test_rviz_config_shows_published_topics():

@@ -163,9 +163,10 @@ def main(default_out: str, argv=None) -> int:
                     f"record_path:={record}", f"results_dir:={os.path.join(run_dir, 'nav')}",
                     f"duration_s:={args.duration}", f"rviz:={str(args.rviz).lower()}"],
                 cpu_quota=False, wait_for_master=False, echo=echo_monitor_lines)
+            # The world launch runs the simulator and the recorder outside the robot's quota.
             session.roslaunch("robot", "robot", [
-                "anyscale_nav_demo", "anyscale_robot.launch", f"world:={args.world}",
-                f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}",
+                "anyscale_nav_demo", "robot.launch", "sim:=false", "record:=false",
+                f"world:={args.world}", f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}",
                 f"allocator:={args.allocator}", f"hysteresis_s:={args.hysteresis}",
                 f"uplink_interface:={bed.uplink_interface('robot')}",
                 f"warm_start:={str(not args.cold_start).lower()}"]

@@ -77,6 +77,11 @@ class NamespaceBed(TwoScaleTestbed):
         """The scale's end of the veth: its carrier goes when the link is taken down."""
         return self.end(scale).interface
 
+    def netns_link(self, scale: str) -> str:
+        """What /proc/PID/ns/net reads for the scale's processes: the inode `ip netns` keeps.
+        All scales share one PID namespace, so a process's scale can be told from /proc."""
+        return f"net:[{os.stat('/var/run/netns/' + self.end(scale).namespace).st_ino}]"
+
 
 def layout_with_cpu(robot_cores: float, laptop_cores: float,
                     base: TwoScaleLayout = TwoScaleLayout()) -> TwoScaleLayout:

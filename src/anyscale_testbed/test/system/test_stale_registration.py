@@ -82,11 +82,6 @@ def relay_in(namespace):
     return None
 
 
-def namespace_of(bed, scale):
-    """The /proc/PID/ns/net link of a scale's processes: the inode `ip netns` keeps."""
-    return f"net:[{os.stat('/var/run/netns/' + bed.end(scale).namespace).st_ino}]"
-
-
 def in_scale(bed, session, scale, argv):
     """argv run to its end inside a scale's network namespace, with that scale's ROS env."""
     return subprocess.run(namespace_exec(bed.end(scale), argv), env=session.env(scale),
@@ -119,7 +114,7 @@ def race(tmp_path_factory):
             f"model:={model}", "sample_rate_hz:=5.0", "sigint_timeout_s:=2.0"])
         bed.start("robot", [sys.executable, "-c", PROBE, got], session.env("robot"),
                   os.path.join(run_dir, "logs", "probe.log"), cpu_quota=False)
-        laptop = namespace_of(bed, "laptop")
+        laptop = bed.netns_link("laptop")
         # The relay moves out, and the robot's instance is stopped once the laptop's published.
         moved = wait_for(lambda: relay_in(laptop) and len(relay_processes()) == 1, 60.0, 0.1)
         assert moved, f"the relay never ran on the laptop alone: {relay_processes()}"
@@ -131,7 +126,7 @@ def race(tmp_path_factory):
         bed.set_link(False)
         time.sleep(CUT_S)
         bed.set_link(True)
-        robot = namespace_of(bed, "robot")
+        robot = bed.netns_link("robot")
         home = wait_for(lambda: relay_in(robot), 5.0, 0.1)
         os.kill(pid, signal.SIGCONT)
         up = time.time()

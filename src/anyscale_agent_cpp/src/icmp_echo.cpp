@@ -161,7 +161,8 @@ double awaitReply(IcmpEcho& echo, uint16_t seq, double sent, double timeout_s)
 }
 }  // namespace
 
-double measureEchoBandwidth(IcmpEcho& echo, std::size_t bulk_bytes, double timeout_s, uint16_t* seq)
+double measureEchoBandwidth(IcmpEcho& echo, std::size_t bulk_bytes, double timeout_s, double bulk_timeout_s,
+                            uint16_t* seq)
 {
   const uint16_t small_seq = ++*seq;
   const double small_sent = echo.send(small_seq, 56);
@@ -171,13 +172,13 @@ double measureEchoBandwidth(IcmpEcho& echo, std::size_t bulk_bytes, double timeo
   const std::size_t bytes = std::min(bulk_bytes, IcmpEcho::kMaxPayload);
   const uint16_t bulk_seq = ++*seq;
   const double bulk_sent = echo.send(bulk_seq, bytes);
-  double bulk_rtt = awaitReply(echo, bulk_seq, bulk_sent, timeout_s) - bulk_sent;
+  double bulk_rtt = awaitReply(echo, bulk_seq, bulk_sent, bulk_timeout_s) - bulk_sent;
   // Unanswered while the small one was: the link did not carry it within the timeout, or dropped
   // one of its fragments from a full queue. Either way it carries less than this bound, which is
   // what the reading says (a 3 Mbit/s link full of camera images answered no bulk echo at all,
   // and the estimate had stayed at the 26 Mbit/s of before).
   if (std::isnan(bulk_rtt))
-    bulk_rtt = timeout_s;
+    bulk_rtt = bulk_timeout_s;
   // 50 us floor: on loopback the difference is within timer noise and would divide by ~0.
   return 2.0 * 8.0 * double(bytes) / std::max(bulk_rtt - small_rtt, 50e-6) / 1e6;
 }

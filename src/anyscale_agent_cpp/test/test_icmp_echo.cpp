@@ -33,7 +33,7 @@ TEST(IcmpEcho, ASmallAndABulkEchoOnLoopbackGiveAFiniteBandwidth)
   if (!echo)
     GTEST_SKIP() << "no ICMP socket here (not root, ping sockets off): " << why;
   uint16_t seq = 0;
-  const double mbps = anyscale_agent::measureEchoBandwidth(*echo, 60000, 1.0, &seq);
+  const double mbps = anyscale_agent::measureEchoBandwidth(*echo, 60000, 1.0, 0.5, &seq);
   EXPECT_TRUE(std::isfinite(mbps));
   EXPECT_GT(mbps, 0.0);
   EXPECT_EQ(seq, 2);

@@ -55,11 +55,12 @@ private:
 namespace anyscale_agent
 {
 
-// One bandwidth reading [Mbit/s] from a small echo (the path's floor) and then one of
-// `bulk_bytes`, each awaited for at most `timeout_s`; NaN if either went unanswered. The reply
-// is as large as the request, so the reading is the harmonic mean of the two directions:
-// 2 * 8 B / (RTT_bulk - RTT_small); a bulk echo unanswered within the timeout reads as if it had
-// taken the timeout. Blocks for up to 2 * timeout_s.
-double measureEchoBandwidth(IcmpEcho& echo, std::size_t bulk_bytes, double timeout_s, uint16_t* seq);
+// One bandwidth reading [Mbit/s] from a small echo (the path's floor, awaited for at most
+// `timeout_s`) and then one of `bulk_bytes` (at most `bulk_timeout_s`); NaN if the small one
+// went unanswered. The reply is as large as the request, so the reading is the harmonic mean of
+// the two directions: 2 * 8 B / (RTT_bulk - RTT_small); a bulk echo unanswered in time reads as
+// if it had taken `bulk_timeout_s`. Blocks for up to timeout_s + bulk_timeout_s.
+double measureEchoBandwidth(IcmpEcho& echo, std::size_t bulk_bytes, double timeout_s, double bulk_timeout_s,
+                            uint16_t* seq);
 
 }  // namespace anyscale_agent

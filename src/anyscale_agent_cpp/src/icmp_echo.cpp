@@ -161,6 +161,16 @@ double awaitReply(IcmpEcho& echo, uint16_t seq, double sent, double timeout_s)
 }
 }  // namespace
 
+std::size_t echoBulkBytes(double estimate_mbps, std::size_t max_bytes)
+{
+  constexpr std::size_t kMin = 4096;
+  const std::size_t most = std::max(kMin, std::min(max_bytes, IcmpEcho::kMaxPayload));
+  if (!std::isfinite(estimate_mbps) || estimate_mbps <= 0.0)
+    return kMin;
+  const double bytes = estimate_mbps * 1e6 / 8.0 * 0.020;
+  return std::clamp(std::size_t(bytes), kMin, most);
+}
+
 double measureEchoBandwidth(IcmpEcho& echo, std::size_t bulk_bytes, double timeout_s, double bulk_timeout_s,
                             uint16_t* seq)
 {

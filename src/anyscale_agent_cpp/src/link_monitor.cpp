@@ -73,14 +73,15 @@ void LinkMonitor::measureByEcho()
     const double wait_s = estimator_.confirmationWanted() ? options_.probe_period_s : options_.bulk_period_s;
     if (wake_icmp_.wait_for(lock, std::chrono::duration<double>(wait_s), [this] { return stopping_; }))
       break;
+    const std::size_t bytes = echoBulkBytes(estimator_.bandwidthMbps(), std::size_t(options_.bulk_bytes));
     lock.unlock();
     double mbps = std::numeric_limits<double>::quiet_NaN();
     try
     {
-      // A bulk echo not back after 0.5 s crossed at under 2 * 8 * bulk_bytes / 0.5 s (1 Mbit/s
-      // with the default size), which no stream worth moving fits: no need to wait the whole
-      // link timeout (2 s on the laptop) for the reading that brings such a stream home.
-      mbps = measureEchoBandwidth(*icmp_, std::size_t(options_.bulk_bytes), options_.timeout_s,
+      // A bulk echo not back after 0.5 s crossed at under 2 * 8 * bytes / 0.5 s, a bound below
+      // what it would have taken at 20 ms of the estimate: no need to wait the whole link
+      // timeout (2 s on the laptop) for the reading that brings a heavy stream home.
+      mbps = measureEchoBandwidth(*icmp_, bytes, options_.timeout_s,
                                   std::min(options_.timeout_s, 0.5), &seq);
     }
     catch (const std::exception& e)

@@ -70,3 +70,13 @@ TEST(IcmpEcho, AnUnknownHostIsAClearError)
     EXPECT_NE(std::string(e.what()).find("no-such-host.invalid"), std::string::npos) << e.what();
   }
 }
+
+TEST(IcmpEcho, TheBulkIsAbout20MsOfTheEstimateWithinItsBounds)
+{
+  using anyscale_agent::echoBulkBytes;
+  EXPECT_EQ(echoBulkBytes(std::nan(""), 32768), 4096u);  // nothing measured: start small
+  EXPECT_EQ(echoBulkBytes(0.5, 32768), 4096u);
+  EXPECT_EQ(echoBulkBytes(3.0, 32768), 7500u);           // fits a 50 ms shaper queue (18.7 kB)
+  EXPECT_EQ(echoBulkBytes(27.0, 32768), 32768u);         // capped by ~link_bulk_bytes
+  EXPECT_EQ(echoBulkBytes(27.0, 1000000), 67500u - 2500u);  // and by what a datagram holds
+}

@@ -55,6 +55,12 @@ private:
 namespace anyscale_agent
 {
 
+// The size of the next bulk echo: about 20 ms of the link at `estimate_mbps`, between 4 KiB and
+// `max_bytes` (4 KiB while nothing is measured). A shaper's queue holds some tens of ms (tc tbf
+// `latency 50ms` on the test bed): a 32 KiB burst of fragments overflowed it below ~4.7 Mbit/s,
+// one fragment lost the whole echo, and the tail drops hit the nodes' own traffic on that link.
+std::size_t echoBulkBytes(double estimate_mbps, std::size_t max_bytes);
+
 // One bandwidth reading [Mbit/s] from a small echo (the path's floor, awaited for at most
 // `timeout_s`) and then one of `bulk_bytes` (at most `bulk_timeout_s`); NaN if the small one
 // went unanswered. The reply is as large as the request, so the reading is the harmonic mean of

@@ -56,6 +56,7 @@ public:
   ProbeKind answered(uint32_t seq, double t);
   // A bandwidth reading from elsewhere (an ICMP echo); NaN is ignored.
   void addBandwidthReading(double mbps);
+  double bandwidthMbps() const { return bandwidth_mbps_; }  // NaN until measured
   LinkSample stats(double now);
   bool outstanding() const { return !pending_.empty(); }
   // A lower bandwidth reading awaits a second bulk probe before the estimate follows it.

@@ -116,7 +116,8 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   link.bulk_bytes = std::max(0, param(pnh_, "link_bulk_bytes", link.bulk_bytes));
   link.bulk_period_s = positive(pnh_, "link_bulk_period_s", link.bulk_period_s);
   link.icmp = param(pnh_, "link_bandwidth_by_icmp", link.icmp);
-  link_ = std::make_unique<LinkMonitor>(nh_, scale_, is_master_, param<std::string>(pnh_, "master_scale", ""), link);
+  link_ = std::make_unique<LinkMonitor>(nh_, scale_, is_master_, param<std::string>(pnh_, "master_scale", ""), link,
+                                        [this] { topics_->resubscribeAll(); });
 
   status_pub_ = nh_.advertise<anyscale_msgs::ScaleStatus>("/anyscale/status", 10);
   const std::string ns = "/anyscale/" + scale_ + "/";

@@ -10,23 +10,27 @@ namespace anyscale_agent
 {
 
 LinkMonitor::LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, std::string master_scale,
-                         LinkOptions options)
-  : scale_(std::move(scale))
+                         LinkOptions options, std::function<void()> on_resubscribed)
+  : nh_(nh)
+  , on_resubscribed_(std::move(on_resubscribed))
+  , scale_(std::move(scale))
   , is_master_(is_master)
   , master_scale_(std::move(master_scale))
   , options_(options)
   , estimator_(options.timeout_s)
 {
-  const auto hints = ros::TransportHints().tcpNoDelay();
+  resubscribed_at_ = now();
   if (is_master_)
   {
     pub_ = nh.advertise<anyscale_msgs::LinkProbe>("/anyscale/link/echo", 20);
-    sub_ = nh.subscribe("/anyscale/link/probe", 20, &LinkMonitor::onProbe, this, hints);
+    subscribe();
+    timer_ = nh.createSteadyTimer(ros::WallDuration(options_.probe_period_s),
+                                  [this](const ros::SteadyTimerEvent&) { resubscribeIfSilent(now()); });
     return;
   }
   // A short queue: probes queued behind a dead link are stale by the time it returns.
   pub_ = nh.advertise<anyscale_msgs::LinkProbe>("/anyscale/link/probe", 2);
-  sub_ = nh.subscribe("/anyscale/link/echo", 20, &LinkMonitor::onEcho, this, hints);
+  subscribe();
   if (options_.bulk_bytes > 0 && !options_.icmp)
   {
     bandwidth_method_ = "ROS probes echoed by the master's agent (~link_bandwidth_by_icmp false)";
@@ -50,6 +54,35 @@ LinkMonitor::LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, 
     ROS_INFO("link bandwidth by %s", bandwidth_method_.c_str());
   }
   timer_ = nh.createSteadyTimer(ros::WallDuration(options_.probe_period_s), &LinkMonitor::onTimer, this);
+}
+
+void LinkMonitor::subscribe()
+{
+  const auto hints = ros::TransportHints().tcpNoDelay();
+  if (is_master_)
+    sub_ = nh_.subscribe("/anyscale/link/probe", 20, &LinkMonitor::onProbe, this, hints);
+  else
+    sub_ = nh_.subscribe("/anyscale/link/echo", 20, &LinkMonitor::onEcho, this, hints);
+}
+
+void LinkMonitor::resubscribeIfSilent(double t)
+{
+  // After a long outage TCP's retransmission backoff can hold a connection silent for minutes
+  // once the link is back (a 100 s outage: nothing in the next 50 s), and roscpp sees no error
+  // on a connection that only waits. A new subscription connects at once. Only the subscriber
+  // is renewed: it is touched by this thread alone, and needs no call to the master under
+  // mutex_.
+  const double heard = last_heard_;
+  if (std::isnan(heard) || t - heard < kResubscribeAfterS || t - resubscribed_at_ < kResubscribeAfterS)
+    return;
+  // Once per silence in the log: on the master it lasts as long as the other scales are gone.
+  if (resubscribed_at_ < heard)
+    ROS_INFO("no link %s for %.0f s: subscribing again, and every %.0f s until one comes", is_master_ ? "probe" : "echo",
+             t - heard, kResubscribeAfterS);
+  subscribe();
+  resubscribed_at_ = t;
+  if (on_resubscribed_)
+    on_resubscribed_();
 }
 
 LinkMonitor::~LinkMonitor()
@@ -100,6 +133,7 @@ double LinkMonitor::now()
 
 void LinkMonitor::onProbe(const anyscale_msgs::LinkProbe::ConstPtr& probe)
 {
+  last_heard_ = now();
   anyscale_msgs::LinkProbe echo;
   echo.scale = probe->scale;
   echo.seq = probe->seq;
@@ -111,8 +145,9 @@ void LinkMonitor::onEcho(const anyscale_msgs::LinkProbe::ConstPtr& echo)
 {
   if (echo->scale != scale_)
     return;
-  std::lock_guard<std::mutex> lock(mutex_);
   const double t = now();
+  last_heard_ = t;
+  std::lock_guard<std::mutex> lock(mutex_);
   // The warm-up's echo: the window is open, the measured probe goes out before it can close.
   if (estimator_.answered(echo->seq, t) == ProbeKind::kWarmUp)
     send(t, ProbeKind::kBulk);
@@ -120,8 +155,9 @@ void LinkMonitor::onEcho(const anyscale_msgs::LinkProbe::ConstPtr& echo)
 
 void LinkMonitor::onTimer(const ros::SteadyTimerEvent&)
 {
-  std::lock_guard<std::mutex> lock(mutex_);
   const double t = now();
+  resubscribeIfSilent(t);
+  std::lock_guard<std::mutex> lock(mutex_);
   // Until the master's agent has been connected once, an unanswered probe says nothing about
   // the link. After that, a lost connection is a lost probe, not a pause in measuring.
   const bool connected = pub_.getNumSubscribers() > 0;

@@ -110,6 +110,16 @@ void TopicWatcher::update(const std::set<std::string>& local_topics)
     }
 }
 
+void TopicWatcher::resubscribeAll()
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (const auto& [topic, c] : counters_)
+  {
+    c->sub.shutdown();
+    subscribe(topic, c);
+  }
+}
+
 std::vector<anyscale_msgs::TopicStatistics> TopicWatcher::stats(const ros::Time& now)
 {
   std::map<std::string, std::shared_ptr<Counter>> counters;

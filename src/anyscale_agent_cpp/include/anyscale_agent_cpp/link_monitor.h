@@ -6,7 +6,10 @@
 #include <anyscale_msgs/LinkProbe.h>
 #include <anyscale_msgs/LinkStatistics.h>
 
+#include <atomic>
 #include <condition_variable>
+#include <functional>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -33,7 +36,10 @@ struct LinkOptions
 class LinkMonitor
 {
 public:
-  LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, std::string master_scale, LinkOptions options);
+  // `on_resubscribed` runs (in the timer thread) each time a silent link subscription was renewed:
+  // the agent's other subscriptions across the link may be held up the same way.
+  LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, std::string master_scale, LinkOptions options,
+              std::function<void()> on_resubscribed = {});
   ~LinkMonitor();
   anyscale_msgs::LinkStatistics stats();
   // "ICMP echo to ADDRESS" or "ROS probes" (and why): how the bandwidth is measured.
@@ -44,9 +50,14 @@ private:
   void onEcho(const anyscale_msgs::LinkProbe::ConstPtr& echo);     // elsewhere: an answer
   void onTimer(const ros::SteadyTimerEvent&);
   void send(double t, ProbeKind kind);  // with mutex_ held
+  void subscribe();                      // probes on the master, echoes elsewhere
+  void resubscribeIfSilent(double t);    // timer thread only
   void measureByEcho();                 // the ICMP thread's loop
   static double now();
 
+  static constexpr double kResubscribeAfterS = 5.0;
+  ros::NodeHandle nh_;
+  std::function<void()> on_resubscribed_;
   std::string scale_;
   bool is_master_;
   std::string master_scale_;
@@ -59,6 +70,8 @@ private:
   uint32_t seq_ = 0;
   double last_bulk_ = -1e9;
   bool peer_seen_ = false;
+  std::atomic<double> last_heard_{std::numeric_limits<double>::quiet_NaN()};  // last probe/echo [steady s]
+  double resubscribed_at_ = 0.0;
   std::string bandwidth_method_;
   // Bulk probes by ICMP echo where the kernel lets this process send them (see icmp_echo.h),
   // in a thread of their own: a reading blocks for up to two timeouts.

@@ -49,6 +49,10 @@ public:
 
   std::vector<anyscale_msgs::TopicStatistics> stats(const ros::Time& now);
 
+  // New connections for every counted topic, keeping the counts: after a long outage TCP's
+  // retransmission backoff can hold the old ones silent for minutes (see LinkMonitor).
+  void resubscribeAll();
+
 private:
   struct Counter
   {

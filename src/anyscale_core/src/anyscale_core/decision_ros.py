@@ -25,6 +25,9 @@ from .model import ModelError
 from .model_loader import load_model
 from .restart_backoff import BackoffParams
 
+# A remote scale's status silent this long while the robot's uplink is up: a new connection.
+RESUBSCRIBE_AFTER_S = 5.0
+
 
 
 class ParamError(ValueError):
@@ -132,7 +135,9 @@ class DecisionNode(AgentActions):
         self.updater.add("connections", self._diag_connections)
         self.updater.add("scales", self._diag_scales)
         self.updater.add("link and load", self._diag_link_and_load)
-        rospy.Subscriber("/anyscale/status", ScaleStatus, self._on_status, queue_size=20)
+        self.status_sub = rospy.Subscriber("/anyscale/status", ScaleStatus, self._on_status,
+                                           queue_size=20)
+        self.resubscribed_at = time.monotonic()
         for node in self.model.nodes:
             if node.state_handoff is not None and node.state_handoff.kind == "pose":
                 rospy.Subscriber(node.state_handoff.topic, PoseWithCovarianceStamped,
@@ -183,9 +188,32 @@ class DecisionNode(AgentActions):
                 self.state = result.state
                 self.link_up = dict(result.state.link_up)
             self._dispatch(result, before)
+            self._resubscribe_if_silent()
             self._send_watch_lists()
             self._purge_ghosts()
             self.updater.update()
+
+    def _resubscribe_if_silent(self):
+        """After a long outage, TCP's retransmission backoff can hold a scale's status connection
+        silent for minutes after the link is back (a 100 s outage: no status in the next 50 s;
+        rospy sees no error on a connection that only waits): a scale silent for
+        RESUBSCRIBE_AFTER_S while the robot's uplink has its carrier gets a new connection."""
+        now = time.monotonic()
+        if now - self.resubscribed_at < RESUBSCRIBE_AFTER_S:
+            return
+        with self.lock:
+            master = self.reports.get(self.master)
+            silent = [s for s, r in self.reports.items()
+                      if s != self.master and now - r.received_at > RESUBSCRIBE_AFTER_S]
+        if not silent or master is None or not master.link_up:
+            return
+        rospy.loginfo("anyscale decision: no status from %s for %.0f s while the uplink is up: "
+                      "subscribing to /anyscale/status again", ", ".join(silent),
+                      RESUBSCRIBE_AFTER_S)
+        self.status_sub.unregister()
+        self.status_sub = rospy.Subscriber("/anyscale/status", ScaleStatus, self._on_status,
+                                           queue_size=20)
+        self.resubscribed_at = now
 
     def _wait_for_tick(self, due: float) -> float:
         """Sleeps until `due` or an early wake-up; returns the time this tick counts from."""

@@ -1,7 +1,9 @@
-"""Repeated agent calls that fail are logged once per change of state; a planned move's wait
+"""Repeated agent calls that fail are logged once per change of state; a start that broke off without an answer is asked once more; a planned move's wait
 for the new instance's output ends on its first message, on a new decision, or on time."""
 import threading
 import time
+
+import pytest
 
 from anyscale_core.agent_client import CallFailures
 from anyscale_core.handover_ros import ABANDONED, PUBLISHED, TIMED_OUT, wait_for_output
@@ -41,3 +43,41 @@ def test_the_wait_times_out_and_keeps_the_old_lease_alive_meanwhile():
     assert wait_for_output(FakeWatch(), 2.2, lambda: True,
                            lambda: beats.append(time.monotonic())) == TIMED_OUT
     assert len(beats) in (2, 3)                    # about once a second
+
+
+def _client_answering(outcomes):
+    """An AgentClient whose service calls give `outcomes` in turn (an exception is raised)."""
+    from anyscale_core import agent_client
+    client = agent_client.AgentClient(1.0, 1.0)
+    calls = []
+
+    def call(scale, service, timeout_s=None, **request):
+        calls.append((scale, service, request["node"]))
+        outcome = outcomes[len(calls) - 1]
+        if isinstance(outcome, Exception):
+            raise outcome
+        return outcome
+    client.call = call
+    return client, calls
+
+
+def test_a_start_that_broke_off_without_an_answer_is_asked_once_more(monkeypatch):
+    import rospy
+    from anyscale_core import agent_client
+    monkeypatch.setattr(agent_client, "START_RETRY_DELAY_S", 0.0)
+    broke = rospy.ServiceException("transport error completing service call: unable to receive "
+                                   "data from sender")
+    client, calls = _client_answering([broke, "answer"])
+    assert client.start("robot", "/ekf", [], 0.0) == "answer"
+    assert calls == [("robot", "start_node", "/ekf")] * 2
+    client, calls = _client_answering([broke, broke])
+    with pytest.raises(rospy.ServiceException):
+        client.start("robot", "/ekf", [], 0.0)
+    assert len(calls) == 2
+
+
+def test_a_start_that_timed_out_is_not_asked_again():
+    client, calls = _client_answering([TimeoutError("no answer within 1 s"), "answer"])
+    with pytest.raises(TimeoutError):
+        client.start("laptop", "/amcl", [], 3.0)
+    assert len(calls) == 1

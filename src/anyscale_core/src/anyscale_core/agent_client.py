@@ -33,6 +33,9 @@ def call_with_timeout(fn: Callable, timeout_s: float):
     return box["value"]
 
 
+START_RETRY_DELAY_S = 0.2
+
+
 class AgentClient:
     """The services of the agents under /anyscale/<scale>/."""
 
@@ -51,8 +54,21 @@ class AgentClient:
                                  self.timeout_s if timeout_s is None else timeout_s)
 
     def start(self, scale, node, overrides, lease_s):
-        return self.call(scale, "start_node", node=node, param_overrides=overrides,
-                         lease_s=lease_s)
+        """One retry when the call broke off without an answer: in one CI run of the live
+        migration test, the initial start of the EKF ended in "unable to receive data from
+        sender", nothing started it again, and navigation never ran. Starting is idempotent at
+        the agent (a node already running there is answered with its pid), so asking again
+        cannot start a second instance. A timeout is not retried: on a partitioned link it would
+        only double the wait."""
+        def call():
+            return self.call(scale, "start_node", node=node, param_overrides=overrides,
+                             lease_s=lease_s)
+        try:
+            return call()
+        except rospy.ServiceException as e:
+            rospy.logwarn("anyscale decision: start %s on %s: %s; asking once more", node, scale, e)
+            time.sleep(START_RETRY_DELAY_S)
+            return call()
 
     def stop(self, scale, node, timeout_s=None):
         return self.call(scale, "stop_node", timeout_s or self.stop_timeout_s, node=node,

@@ -1,5 +1,6 @@
-"""Repeated agent calls that fail are logged once per change of state; a start that broke off without an answer is asked once more; a planned move's wait
-for the new instance's output ends on its first message, on a new decision, or on time."""
+"""Repeated agent calls that fail are logged once per change of state; a start that broke off
+without an answer is asked once more; a planned move's wait for the new instance's output ends
+on its first message, on a new decision, or on time."""
 import threading
 import time
 

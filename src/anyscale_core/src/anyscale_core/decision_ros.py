@@ -29,7 +29,6 @@ from .restart_backoff import BackoffParams
 RESUBSCRIBE_AFTER_S = 5.0
 
 
-
 class ParamError(ValueError):
     pass
 
@@ -138,6 +137,7 @@ class DecisionNode(AgentActions):
         self.status_sub = rospy.Subscriber("/anyscale/status", ScaleStatus, self._on_status,
                                            queue_size=20)
         self.resubscribed_at = time.monotonic()
+        self.resubscribe_logged: List[str] = []
         for node in self.model.nodes:
             if node.state_handoff is not None and node.state_handoff.kind == "pose":
                 rospy.Subscriber(node.state_handoff.topic, PoseWithCovarianceStamped,
@@ -206,10 +206,14 @@ class DecisionNode(AgentActions):
             silent = [s for s, r in self.reports.items()
                       if s != self.master and now - r.received_at > RESUBSCRIBE_AFTER_S]
         if not silent or master is None or not master.link_up:
+            self.resubscribe_logged = []
             return
-        rospy.loginfo("anyscale decision: no status from %s for %.0f s while the uplink is up: "
-                      "subscribing to /anyscale/status again", ", ".join(silent),
-                      RESUBSCRIBE_AFTER_S)
+        # Once per silence in the log: an agent that is gone stays silent for as long as it is.
+        if silent != self.resubscribe_logged:
+            rospy.loginfo("anyscale decision: no status from %s for %.0f s while the uplink is "
+                          "up: subscribing to /anyscale/status again, and every %.0f s until it "
+                          "comes", ", ".join(silent), RESUBSCRIBE_AFTER_S, RESUBSCRIBE_AFTER_S)
+            self.resubscribe_logged = silent
         self.status_sub.unregister()
         self.status_sub = rospy.Subscriber("/anyscale/status", ScaleStatus, self._on_status,
                                            queue_size=20)

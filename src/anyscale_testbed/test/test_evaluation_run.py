@@ -13,21 +13,24 @@ from anyscale_testbed.evaluation_run import (amcl_bandwidth_mbps, evaluation_pla
 from test_evaluation_table import record
 
 
-def test_the_plan_is_baseline_seeded_tests_per_allocator_and_best_case():
+def test_the_plan_is_baselines_seeded_tests_per_allocator_and_best_case():
     plan = evaluation_plan([1, 2, 3, 4])
     assert [r.key for r in plan] == (
-        ["baseline"] + [f"{a}-seed{s}" for a in ("paper", "paper_local", "optimal")
-                        for s in (1, 2, 3, 4)] + ["best_case"])
-    assert plan[0].argv == ["--link", "schedule", "--schedule", "[[0, 0]]"]
+        ["baseline", "baseline-2"] + [f"{a}-seed{s}" for a in ("paper", "paper_local", "optimal")
+                                      for s in (1, 2, 3, 4)] + ["best_case"])
+    assert plan[0].argv == plan[1].argv == ["--link", "schedule", "--schedule", "[[0, 0]]"]
+    assert plan[1].title == "baseline (no migration), run 2"
     assert plan[-1].argv == ["--link", "schedule", "--schedule", "[[0, 27]]"]
-    assert plan[6].argv == ["--link", "coverage", "--seed", "2", "--allocator", "paper_local"]
-    assert plan[1].title == "AnyScale, seed 1" and plan[5].title == "AnyScale paper_local, seed 1"
+    assert plan[7].argv == ["--link", "coverage", "--seed", "2", "--allocator", "paper_local"]
+    assert plan[2].title == "AnyScale, seed 1" and plan[6].title == "AnyScale paper_local, seed 1"
+    assert [r.key for r in evaluation_plan([1], baseline_runs=3)[:3]] == [
+        "baseline", "baseline-2", "baseline-3"]
 
 
 def test_runs_are_selected_by_key_or_kind_and_unknown_names_are_refused():
     plan = evaluation_plan([1, 2])
     assert [r.key for r in select_runs(plan, "baseline,paper")] == [
-        "baseline", "paper-seed1", "paper-seed2"]
+        "baseline", "baseline-2", "paper-seed1", "paper-seed2"]
     assert [r.key for r in select_runs(plan, "optimal-seed2, best_case")] == [
         "optimal-seed2", "best_case"]
     assert select_runs(plan, None) == plan
@@ -40,7 +43,8 @@ def test_runs_are_selected_by_key_or_kind_and_unknown_names_are_refused():
 
 
 def test_bad_arguments_are_one_line_and_exit_2(capsys):
-    for argv in (["--runs", "nope"], ["--seeds", "x"], ["--duration", "-5"]):
+    for argv in (["--runs", "nope"], ["--seeds", "x"], ["--duration", "-5"],
+                 ["--baseline-runs", "0"]):
         with pytest.raises(SystemExit) as ended:
             parse_args(argv, "out")
         assert ended.value.code == 2
@@ -83,8 +87,8 @@ def test_the_evaluation_runs_what_is_not_recorded_yet_and_writes_table_and_figur
     monkeypatch.setattr(evaluation_run, "run_logged", fake)
     monkeypatch.setattr(evaluation_run, "start_on_the_testbed", lambda program: None)
     out = str(tmp_path / "eval")
-    argv = ["--world", "small_loop", "--seeds", "1", "--runs", "baseline,paper",
-            "--duration", "50", "--out", out]
+    argv = ["--world", "small_loop", "--seeds", "1", "--baseline-runs", "1",
+            "--runs", "baseline,paper", "--duration", "50", "--out", out]
     # A path that cannot run: were the fake not in place, nothing would start a test bed.
     assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", argv) == 0
     assert [a[a.index("--link"):] for a in fake.argvs] == [

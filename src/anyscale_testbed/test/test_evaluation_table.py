@@ -10,8 +10,8 @@ from anyscale_testbed.evaluation_figures import (AMCL_ON_LAPTOP, AR_ON_LAPTOP, B
                                                  configuration_shares,
                                                  configurations_along_path, coverage_bound,
                                                  mean_abs_omega_deg_s, run_figures)
-from anyscale_testbed.evaluation_table import (format_markdown, format_table, gain,
-                                               paper_comparison, table_lines, write_csv)
+from anyscale_testbed.evaluation_table import (baseline_of, format_markdown, format_table,
+                                               gain, paper_comparison, table_lines, write_csv)
 from anyscale_testbed.testbed_record import TestbedRecord, tolerance_violations
 
 AMCL_MBPS = 0.22
@@ -94,7 +94,9 @@ def campaign():
 
 
 def test_gains_against_the_baseline_and_the_share_of_the_bound():
-    baseline, one, two, broken, missing, best = campaign()
+    figures = campaign()
+    baseline = baseline_of(figures)
+    _, one, two, broken, missing, best = figures
     assert gain(one, baseline) == pytest.approx(1 - 151 / 200)
     assert gain(best, baseline) == pytest.approx(0.5)
     assert math.isnan(gain(broken, baseline)) and math.isnan(gain(missing, baseline))
@@ -118,8 +120,25 @@ def test_gains_against_the_baseline_and_the_share_of_the_bound():
     assert optimal["violations"] == "1" and optimal["time to complete"] == "-"
 
 
+def test_gains_are_measured_against_the_mean_of_the_baseline_runs_that_completed():
+    slow = run_figures("baseline, run 2", "baseline", 0, 0, record(done_t=230.0, mappings=[]),
+                       AMCL_MBPS)
+    unfinished = run_figures("baseline, run 3", "baseline", 0, 0,
+                             record(done_t=None, mappings=[]), AMCL_MBPS)
+    figures = campaign() + [slow, unfinished]
+    baseline = baseline_of(figures)
+    assert (baseline.runs, baseline.path_time_s) == (2, pytest.approx(210.0))
+    assert (baseline.shortest_s, baseline.longest_s) == (pytest.approx(200.0), pytest.approx(220.0))
+    assert gain(figures[1], baseline) == pytest.approx(1 - 151 / 210)
+    rows = {line[0]: line for line in table_lines(figures)}
+    assert rows["baseline, run 2"][3] == "-4.8 %"           # 220 s against the mean's 210 s
+    assert paper_comparison(figures)[0] == ("baseline: 2 runs, mean time to complete 210 s "
+                                            "(200-220 s)")
+    assert baseline_of([f for f in figures if f.kind != "baseline"]) is None
+
+
 def test_the_paper_beside_ours():
-    lines = paper_comparison(campaign())
+    lines = paper_comparison(campaign())[1:]
     assert lines[0] == "mean gain of the AnyScale tests: paper 28.0 % over 4 tests; here 24.2 % " \
                        "over 2"
     assert lines[1] == "best case (the network everywhere): paper 50.0 %; here 50.0 %"
@@ -132,7 +151,7 @@ def test_text_markdown_and_csv_copies(tmp_path):
     figures = campaign()
     text = format_table(figures)
     assert "VIOLATION optimal seed 1: /amcl_pose silent 5.0" in text
-    assert text.splitlines()[-6] == "paper vs here:"
+    assert text.splitlines()[-7] == "paper vs here:"
     md = format_markdown(figures, "Evaluation")
     assert md.startswith("# Evaluation\n\n| run | exit | time to complete |")
     assert "| AnyScale seed 1 | 0 | 151 s | 24.5 % |" in md

@@ -123,6 +123,10 @@ def test_params_defaults_and_errors():
         read_params(params(model="/m.yaml", lease_s=-1))
     with pytest.raises(ParamError, match="~act_at_tolerance"):
         read_params(params(model="/m.yaml", act_at_tolerance=1.5))
+    assert (p.engine.bandwidth_margin, p.engine.bandwidth_stay_margin) == (0.3, 0.15)
+    assert p.engine.weak_link_mbps == 0.0
+    with pytest.raises(ParamError, match="~bandwidth_stay_margin .0.4. must not exceed"):
+        read_params(params(model="/m.yaml", bandwidth_stay_margin=0.4))
 
 
 def test_scale_report_names_the_nodes_that_ended_and_how():

@@ -26,7 +26,7 @@ struct LinkOptions
   double probe_period_s = 0.5;
   double timeout_s = 1.0;
   int bulk_bytes = 32768;
-  double bulk_period_s = 2.0;
+  double bulk_period_s = 1.0;  // a bulk echo of ~20 ms of the link: 2 % of it
   bool icmp = true;  // bulk probes by ICMP echo where the kernel allows it; false: over ROS
 };
 

@@ -13,7 +13,8 @@ import numpy as np
 
 from .allocators import AllocationContext
 from .characterisation import Characterisation
-from .constraints import BandwidthHold, DynamicState, FrequencyToleranceTracker
+from .constraints import (BandwidthHold, DynamicState, FrequencyToleranceTracker,
+                          required_bandwidth)
 from .cost import ObjectiveIntegrator, perf
 from .restart_backoff import BackoffParams, RestartBackoff
 
@@ -29,6 +30,12 @@ class DecisionParams:
     restart: BackoffParams = BackoffParams()  # nodes that end unasked: at once, then backing off
     bandwidth_hold_s: float = 5.0       # a move out needs the link to have shown its bandwidth
     bandwidth_margin: float = 0.3       # this long, with this share above what it will carry
+    # A node out stays while the link measures its streams plus this share (<= bandwidth_margin,
+    # or what moved out would come back at once): the probe overrates what a stream gets.
+    bandwidth_stay_margin: float = 0.15
+    # A link measured below this is about to be lost: it counts as carrying nothing, so nodes
+    # come home while a handover can still cross it (0: off). See DecisionEngine.usable_bandwidth.
+    weak_link_mbps: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -163,7 +170,8 @@ class DecisionEngine:
         remote_up = any(up[k] for k in range(self.ch.num_scales) if k != self.ch.master)
         measured = self._measured_bandwidth(reports, now)
         # Nothing measured (a link that just came back) has shown nothing: 0 for moves out.
-        self.bandwidth_hold.add(now, measured if remote_up and math.isfinite(measured) else 0.0)
+        self.bandwidth_hold.add(now, measured if remote_up and not self.is_weak(measured)
+                                and math.isfinite(measured) else 0.0)
         state = replace(state, admit_bandwidth_mbps=self.bandwidth_hold.admissible(now))
         if not moves_allowed:
             restarts, restart_events = self._restarts(reports, up, now, starting)
@@ -172,6 +180,7 @@ class DecisionEngine:
         ctx = AllocationContext(now, self.params.hysteresis_s, dict(self.migrated_back_at),
                                 frozenset(violating))
         decision = self.allocator.step(self.ch, self.assign, state, ctx)
+        streams = required_bandwidth(self.ch, self.assign)
         actions, events = [], []
         for move in decision.moves:
             name = self.ch.node_names[move.node]
@@ -187,7 +196,7 @@ class DecisionEngine:
             elif self._carrier_up(reports):
                 actions.append(StopNode(name, source, best_effort=True))
             events.append(Event("migrate_back" if back else "migrate", name, source, target,
-                                move.reason))
+                                self._reason(move, measured, streams)))
             if back:
                 self.migrated_back_at[move.node] = now
             self.moved_at[move.node] = now
@@ -236,6 +245,31 @@ class DecisionEngine:
         """The latest state of a node that hands its state over (e.g. its last pose)."""
         self.handoff[node] = dict(params)
 
+    def is_weak(self, measured_mbps: float) -> bool:
+        return math.isfinite(measured_mbps) and measured_mbps < self.params.weak_link_mbps
+
+    def usable_bandwidth(self, measured_mbps: float) -> float:
+        """What the allocator may place on a link measured at measured_mbps: the measurement
+        less the stay margin (moves out are held to more, see BandwidthHold). A WiFi link is
+        seldom lost from full rate: rate adaptation first steps down to its lowest rates, and
+        a node brought home while the link still carries the handover is a planned move (the
+        new instance publishes before the old one stops), where one brought home by the loss
+        leaves its output silent until it has started on the robot. So a weak link carries
+        nothing: nodes come home, and none moves out until the link is better again."""
+        if self.is_weak(measured_mbps):
+            return 0.0
+        return measured_mbps / (1.0 + self.params.bandwidth_stay_margin)
+
+    def _reason(self, move, measured: float, streams: float) -> str:
+        """The allocator's reason, in the link's measured terms for a bandwidth return."""
+        if move.target != self.ch.master or not move.reason.startswith("bandwidth"):
+            return move.reason
+        if self.is_weak(measured):
+            return (f"link at {measured:.1f} Mbit/s, below weak_link_mbps "
+                    f"{self.params.weak_link_mbps:g}: home before it is lost")
+        return (f"link at {measured:.1f} Mbit/s < {streams:.2f} Mbit/s of streams + "
+                f"{100 * self.params.bandwidth_stay_margin:.0f} %")
+
     def mapping(self) -> Dict[str, str]:
         return self.ch.as_dict(self.assign)
 
@@ -258,7 +292,7 @@ class DecisionEngine:
         # Until a link is measured, the paper's nominal figure: nothing that is out comes back
         # for want of a measurement (a move out needs one, see BandwidthHold).
         measured = self._measured_bandwidth(reports, now)
-        bandwidth = measured if math.isfinite(measured) else \
+        bandwidth = self.usable_bandwidth(measured) if math.isfinite(measured) else \
             self.ch.model.network.max_bandwidth_mbps
         return DynamicState(bandwidth, loads, link_up)
 

@@ -72,9 +72,15 @@ def read_params(get=rospy.get_param) -> NodeParams:
                                                   number("restart_delay_max_s", 30.0),
                                                   number("restart_reset_s", 30.0)),
                             bandwidth_hold_s=number("bandwidth_hold_s", 5.0),
-                            bandwidth_margin=number("bandwidth_margin", 0.3))
+                            bandwidth_margin=number("bandwidth_margin", 0.3),
+                            bandwidth_stay_margin=number("bandwidth_stay_margin", 0.15),
+                            weak_link_mbps=number("weak_link_mbps", 0.0))
     if engine.act_at_tolerance > 1.0:
         raise ParamError(f"~act_at_tolerance: expected 0..1, got {engine.act_at_tolerance:g}")
+    if engine.bandwidth_stay_margin > engine.bandwidth_margin:
+        raise ParamError(f"~bandwidth_stay_margin ({engine.bandwidth_stay_margin:g}) must not "
+                         f"exceed ~bandwidth_margin ({engine.bandwidth_margin:g}): a node would "
+                         f"come back as soon as it moved out")
     return NodeParams(model, str(get("~allocator", "paper")), number("period_s", 1.0, 0.05),
                       engine, number("service_timeout_s", 5.0, 0.1),
                       number("stop_timeout_s", 20.0, 0.1), number("adopt_wait_s", 5.0),

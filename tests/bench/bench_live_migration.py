@@ -12,9 +12,9 @@ Links (--link):
          down. The navigation demo runs with the agents' warm standbys and without them (every
          start imports anew), and a stock topic_tools relay (roscpp: no standby); warm and cold
          share the machine's load of the moment, so their ratio is the figure to read.
-  thin   the main job's conditions: per cycle 12 Mbit/s (both nodes move out), then 4.5 Mbit/s
+  thin   the main job's conditions: per cycle 12 Mbit/s (both nodes move out), then 6 Mbit/s
          with AR's 6 Mbit/s camera stream on it (AR must come back, AMCL stays on the congested
-         link), then down.
+         link: below robot.launch's weak_link_mbps it would come back too), then down.
   both   (default) all of the above.
 Run with the workspace sourced:
     sudo -E /usr/bin/python3 tests/bench/bench_live_migration.py [--cycles 3] [--link thin]
@@ -43,12 +43,12 @@ TOLERANCE_S = {"amcl": 2.0, "ar_recognition": 1.0, "relay": 2.0}
 
 
 def cycle_schedule(cycles: int, up_s: float, down_s: float, thin: bool = False):
-    """[[t, Mbit/s], ...]: per cycle up_s of good link (the second half at 4.5 Mbit/s when
+    """[[t, Mbit/s], ...]: per cycle up_s of good link (the second half at 6 Mbit/s when
     thin), then down_s of link down; and the run's duration."""
     steps, t = [], 0.0
     for _ in range(cycles):
         if thin:
-            steps += [[t, 12], [t + up_s / 2, 4.5], [t + up_s, 0]]
+            steps += [[t, 12], [t + up_s / 2, 6], [t + up_s, 0]]
         else:
             steps += [[t, 27], [t + up_s, 0]]
         t += up_s + down_s
@@ -173,7 +173,7 @@ def main(argv=None):
     p.add_argument("--up", type=float, default=25.0, help="seconds of good link per cycle")
     p.add_argument("--down", type=float, default=8.0, help="seconds of link down per cycle")
     p.add_argument("--link", choices=("clean", "thin", "both"), default="both",
-                   help="clean: 27 Mbit/s cycles (warm, cold, relay); thin: 12 then 4.5 Mbit/s "
+                   help="clean: 27 Mbit/s cycles (warm, cold, relay); thin: 12 then 6 Mbit/s "
                         "with AR's stream on it (warm); both (default)")
     args = p.parse_args(argv)
     missing = missing_capabilities()

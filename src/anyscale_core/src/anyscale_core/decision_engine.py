@@ -19,6 +19,11 @@ from .cost import ObjectiveIntegrator, perf
 from .restart_backoff import BackoffParams, RestartBackoff
 
 
+# After a move, the streams of the mapping before it still count as crossing the link this long
+# (the handover, then a bandwidth reading taken without them: the echo runs every second).
+STREAMS_SETTLE_S = 3.0
+
+
 @dataclass(frozen=True)
 class DecisionParams:
     hysteresis_s: float = 10.0          # the paper's T: no re-migration this soon after a return
@@ -134,6 +139,7 @@ class DecisionEngine:
         self.backoff = [RestartBackoff(params.restart) for _ in ch.node_names]
         self.bandwidth_hold = BandwidthHold(params.bandwidth_hold_s, params.bandwidth_margin)
         self.start_acked_at: Dict[int, float] = {}   # node -> when its latest start was answered
+        self.streams: List[Tuple[float, float]] = []  # (until when, Mbit/s) of earlier mappings
 
     # --- start-up -----------------------------------------------------------------------------
     def adopt_or_start(self, reports: Mapping[str, ScaleReport], now: float) -> TickResult:
@@ -170,7 +176,7 @@ class DecisionEngine:
         remote_up = any(up[k] for k in range(self.ch.num_scales) if k != self.ch.master)
         measured = self._measured_bandwidth(reports, now)
         # Nothing measured (a link that just came back) has shown nothing: 0 for moves out.
-        self.bandwidth_hold.add(now, measured if remote_up and not self.is_weak(measured)
+        self.bandwidth_hold.add(now, measured if remote_up and not self.is_weak(measured, now)
                                 and math.isfinite(measured) else 0.0)
         state = replace(state, admit_bandwidth_mbps=self.bandwidth_hold.admissible(now))
         if not moves_allowed:
@@ -179,8 +185,9 @@ class DecisionEngine:
         violating = self._update_trackers(reports, now)
         ctx = AllocationContext(now, self.params.hysteresis_s, dict(self.migrated_back_at),
                                 frozenset(violating))
-        decision = self.allocator.step(self.ch, self.assign, state, ctx)
         streams = required_bandwidth(self.ch, self.assign)
+        weak = self.is_weak(measured, now)
+        decision = self.allocator.step(self.ch, self.assign, state, ctx)
         actions, events = [], []
         for move in decision.moves:
             name = self.ch.node_names[move.node]
@@ -196,11 +203,13 @@ class DecisionEngine:
             elif self._carrier_up(reports):
                 actions.append(StopNode(name, source, best_effort=True))
             events.append(Event("migrate_back" if back else "migrate", name, source, target,
-                                self._reason(move, measured, streams)))
+                                self._reason(move, measured, streams, weak)))
             if back:
                 self.migrated_back_at[move.node] = now
             self.moved_at[move.node] = now
         if decision.moves:
+            self.streams.append((now, streams))     # what crossed until now
+            self.streams = [(t, b) for t, b in self.streams if t >= now - STREAMS_SETTLE_S]
             self.assign = decision.assign.copy()
             self.objective.change(now, perf(self.ch, self.assign))
         restarts, restart_events = self._restarts(reports, up, now, starting,
@@ -245,10 +254,19 @@ class DecisionEngine:
         """The latest state of a node that hands its state over (e.g. its last pose)."""
         self.handoff[node] = dict(params)
 
-    def is_weak(self, measured_mbps: float) -> bool:
-        return math.isfinite(measured_mbps) and measured_mbps < self.params.weak_link_mbps
+    def is_weak(self, measured_mbps: float, now: float) -> bool:
+        """Whether the link itself is weak, not just filled by the streams sent across it: the
+        echo then measures what they leave (a 6 Mbit/s link carrying AR's camera read 1.1),
+        and the bandwidth rule brings the heavy node home. What the link carries is about the
+        reading plus those streams, counted for STREAMS_SETTLE_S after they stopped: the old
+        instance streams until the new one has published, and the estimate needs a reading
+        taken after that."""
+        carried = max([b for t, b in self.streams if t >= now - STREAMS_SETTLE_S] +
+                      [required_bandwidth(self.ch, self.assign)])
+        return (math.isfinite(measured_mbps)
+                and measured_mbps + carried < self.params.weak_link_mbps)
 
-    def usable_bandwidth(self, measured_mbps: float) -> float:
+    def usable_bandwidth(self, measured_mbps: float, now: float) -> float:
         """What the allocator may place on a link measured at measured_mbps: the measurement
         less the stay margin (moves out are held to more, see BandwidthHold). A WiFi link is
         seldom lost from full rate: rate adaptation first steps down to its lowest rates, and
@@ -256,18 +274,18 @@ class DecisionEngine:
         new instance publishes before the old one stops), where one brought home by the loss
         leaves its output silent until it has started on the robot. So a weak link carries
         nothing: nodes come home, and none moves out until the link is better again."""
-        if self.is_weak(measured_mbps):
+        if self.is_weak(measured_mbps, now):
             return 0.0
         return measured_mbps / (1.0 + self.params.bandwidth_stay_margin)
 
-    def _reason(self, move, measured: float, streams: float) -> str:
+    def _reason(self, move, measured: float, streams: float, weak: bool) -> str:
         """The allocator's reason, in the link's measured terms for a bandwidth return."""
         if move.target != self.ch.master or not move.reason.startswith("bandwidth"):
             return move.reason
-        if self.is_weak(measured):
-            return (f"link at {measured:.1f} Mbit/s, below weak_link_mbps "
-                    f"{self.params.weak_link_mbps:g}: home before it is lost")
-        return (f"link at {measured:.1f} Mbit/s < {streams:.2f} Mbit/s of streams + "
+        if weak:
+            return (f"bandwidth {measured:.1f} Mbit/s, below weak_link_mbps "
+                    f"{self.params.weak_link_mbps:g}: home before the link is lost")
+        return (f"bandwidth {measured:.1f} Mbit/s < {streams:.2f} Mbit/s of streams + "
                 f"{100 * self.params.bandwidth_stay_margin:.0f} %")
 
     def mapping(self) -> Dict[str, str]:
@@ -292,7 +310,7 @@ class DecisionEngine:
         # Until a link is measured, the paper's nominal figure: nothing that is out comes back
         # for want of a measurement (a move out needs one, see BandwidthHold).
         measured = self._measured_bandwidth(reports, now)
-        bandwidth = self.usable_bandwidth(measured) if math.isfinite(measured) else \
+        bandwidth = self.usable_bandwidth(measured, now) if math.isfinite(measured) else \
             self.ch.model.network.max_bandwidth_mbps
         return DynamicState(bandwidth, loads, link_up)
 

@@ -32,8 +32,12 @@ import subprocess
 import sys
 import time
 
-from anyscale_testbed.two_scale_testbed import (CFS_PERIOD_US, TwoScaleLayout, TwoScaleTestbed,
-                                                missing_capabilities, namespace_exec, process_layout)
+try:
+    from anyscale_testbed.two_scale_testbed import (CFS_PERIOD_US, TwoScaleLayout, TwoScaleTestbed,
+                                                    missing_capabilities, namespace_exec, process_layout)
+except ImportError as e:
+    sys.exit(f"{os.path.basename(__file__)}: {e}: source this workspace first "
+             "(source devel/setup.bash; scripts/setup.sh installs and builds it)")
 
 PID = os.getpid()
 _BASE = process_layout("asbl", "10.213.78", PID)

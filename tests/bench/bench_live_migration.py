@@ -30,10 +30,14 @@ import tempfile
 import threading
 import time
 
-from anyscale_testbed.testbed_record import (TestbedRecord, link_transitions, move_figures,
-                                             reaction_s)
-from anyscale_testbed.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
-from anyscale_testbed.two_scale_testbed import missing_capabilities
+try:
+    from anyscale_testbed.testbed_record import (TestbedRecord, link_transitions, move_figures,
+                                                 reaction_s)
+    from anyscale_testbed.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
+    from anyscale_testbed.two_scale_testbed import missing_capabilities
+except ImportError as e:
+    sys.exit(f"{os.path.basename(__file__)}: {e}: source this workspace first "
+             "(source devel/setup.bash; scripts/setup.sh installs and builds it)")
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")

@@ -24,8 +24,12 @@ import os
 import sys
 import time
 
-from anyscale_testbed.premise_figures import COLUMNS, format_markdown, premise_figures
-from anyscale_testbed.bench_runs import latest_record, run_logged, start_on_the_testbed
+try:
+    from anyscale_testbed.premise_figures import COLUMNS, format_markdown, premise_figures
+    from anyscale_testbed.bench_runs import latest_record, run_logged, start_on_the_testbed
+except ImportError as e:
+    sys.exit(f"{os.path.basename(__file__)}: {e}: source this workspace first "
+             "(source devel/setup.bash; scripts/setup.sh installs and builds it)")
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 RUN_TESTBED = os.path.join(ROOT, "scripts", "run_testbed.py")

@@ -22,9 +22,13 @@ import time
 
 import yaml
 
-from anyscale_testbed.bench_runs import latest_record, run_logged, start_on_the_testbed
-from anyscale_testbed.tolerance_report import (format_markdown, format_table, row_cells, run_row,
-                                               topics_of, write_csv)
+try:
+    from anyscale_testbed.bench_runs import latest_record, run_logged, start_on_the_testbed
+    from anyscale_testbed.tolerance_report import (format_markdown, format_table, row_cells, run_row,
+                                                   topics_of, write_csv)
+except ImportError as e:
+    sys.exit(f"{os.path.basename(__file__)}: {e}: source this workspace first "
+             "(source devel/setup.bash; scripts/setup.sh installs and builds it)")
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 RUN_TESTBED = os.path.join(ROOT, "scripts", "run_testbed.py")

@@ -3,9 +3,10 @@
 output silent for longer than its tolerance, 0 violations in 10 runs.
 
 Each run is scripts/run_testbed.py with the coverage link (the same code as the main job),
-started at a different goal of the world's loop: run k starts at goal k mod the number of
+with its own seed of the WiFi variation (shadowing, interference episodes: wifi_variation.py)
+and started at a different goal of the world's loop: run k starts at goal k mod the number of
 goals and does the whole loop from there, so the link's outages meet the robot at different
-moments of its mission (seeded coverage will come with the evaluation issue, #13). It prints,
+moments of its mission. It prints,
 per run, the path time, the migrations, the restarts, the longest silence of each connection's
 output against its tolerance and the violations with their cause (all read from the run's
 record.json), then a total; it writes them to DIR/tolerances.csv and DIR/tolerances.md. A run
@@ -43,6 +44,9 @@ def parse_args(argv):
     p.add_argument("--allocator", default="paper", help="paper (default), paper_local, optimal")
     p.add_argument("--first-start", type=int, default=0, metavar="K",
                    help="run k starts at goal (K + k) mod the number of goals (K = 0)")
+    p.add_argument("--first-seed", type=int, default=11, metavar="S",
+                   help="run k has the WiFi variation's seed S + k (S = 11: the evaluation's "
+                        "tests use 1-4)")
     p.add_argument("--duration", type=float, default=0.0,
                    help="end each run after this many seconds (default: when the loop is done)")
     p.add_argument("--out", default=None,
@@ -50,6 +54,8 @@ def parse_args(argv):
     args = p.parse_args(argv)
     if args.runs < 1:
         p.error("--runs: at least 1")
+    if args.first_seed < 1:
+        p.error(f"--first-seed: expected >= 1 (0 is the unvaried model), got {args.first_seed}")
     return args
 
 
@@ -66,11 +72,12 @@ def goal_count(world: str) -> int:
         sys.exit(f"bench: --world {world}: cannot read its goals from {path}: {e}")
 
 
-def run_once(args, start_goal: int, out_dir: str) -> int:
+def run_once(args, start_goal: int, seed: int, out_dir: str) -> int:
     """One run of the main job's scenario; its console output goes to out_dir/console.log.
     Returns run_testbed.py's exit code."""
     return run_logged([sys.executable, RUN_TESTBED, "--world", args.world, "--link", "coverage",
-                       "--allocator", args.allocator, "--start-goal", str(start_goal),
+                       "--seed", str(seed), "--allocator", args.allocator,
+                       "--start-goal", str(start_goal),
                        "--duration", str(args.duration), "--out", out_dir], out_dir)
 
 
@@ -87,15 +94,16 @@ def main(argv=None) -> int:
     try:
         for k in range(args.runs):
             start_goal = (args.first_start + k) % goals
+            seed = args.first_seed + k
             run_dir = os.path.join(out, f"run{k + 1:02d}")
-            print(f"[{k + 1}/{args.runs}] start at goal {start_goal}, log {run_dir}/console.log",
-                  flush=True)
+            print(f"[{k + 1}/{args.runs}] start at goal {start_goal}, seed {seed}, log "
+                  f"{run_dir}/console.log", flush=True)
             began = time.monotonic()
-            code = run_once(args, start_goal, run_dir)
-            rows.append(run_row(k + 1, start_goal, code, latest_record(run_dir)))
+            code = run_once(args, start_goal, seed, run_dir)
+            rows.append(run_row(k + 1, start_goal, code, latest_record(run_dir), seed))
             cells = row_cells(rows[-1], topics_of(rows))
             print(f"[{k + 1}/{args.runs}] done in {time.monotonic() - began:.0f} s: exit "
-                  f"{code}, path time {cells[3]}, {rows[-1].migrations} migrations, "
+                  f"{code}, path time {cells[4]}, {rows[-1].migrations} migrations, "
                   f"{rows[-1].restarts} restarts, {len(rows[-1].violations)} violations",
                   flush=True)
             for v in rows[-1].violations:

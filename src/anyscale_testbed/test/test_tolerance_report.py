@@ -35,7 +35,8 @@ def two_runs():
     broken = record(ticks(10.0, 100.0) + ticks(103.5, 310.0),
                     [move(100.2, "migrate_back", reason="link to laptop down"),
                      move(120.0, "restart")], done_t=None)
-    return [run_row(1, 0, 0, clean), run_row(2, 1, 0, broken), run_row(3, 2, 1, None)]
+    return [run_row(1, 0, 0, clean, seed=11), run_row(2, 1, 0, broken, seed=12),
+            run_row(3, 2, 1, None, seed=13)]
 
 
 def test_a_row_has_the_run_figures_and_the_record_violations():
@@ -75,12 +76,13 @@ def test_csv_and_markdown_copies(tmp_path):
     with open(tmp_path / "t.csv") as f:
         read = list(csv.DictReader(f))
     assert [r["violations"] for r in read] == ["0", "1", "0"]
+    assert [r["seed"] for r in read] == ["11", "12", "13"]
     assert read[1]["longest_silence_s /amcl_pose"] == "3.500"
     assert read[1]["tolerance_s /ar_markers"] == "1.000"
     assert read[1]["violation_details"].startswith("run 2: /amcl_pose silent 3.50 s")
     assert read[2]["path_time_s"] == "" and read[2]["note"] == "no record"
     md = format_markdown(rows, "Tolerance bench")
     assert md.startswith("# Tolerance bench\n\n| run | start goal |")
-    assert "| 2 | 1 | 0 | - | 1 | 1 | 3.50/2 s ! |" in md
+    assert "| 2 | 1 | 12 | 0 | - | 1 | 1 | 3.50/2 s ! |" in md
     assert "- run 2: /amcl_pose silent 3.50 s" in md
     assert md.rstrip().endswith("1 restarts")

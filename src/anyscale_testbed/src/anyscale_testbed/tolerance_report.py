@@ -16,6 +16,7 @@ class RunRow:
     run: int                        # 1-based
     start_goal: int                 # the goal of the world's list the robot started at
     exit_code: int                  # run_testbed.py's
+    seed: int = 0                   # the coverage's WiFi variation (0: the plain model)
     path_time_s: float = math.nan   # first navigation status -> "done"; NaN if not done
     migrations: int = 0             # moves out and back
     restarts: int = 0
@@ -35,9 +36,9 @@ def path_time(rec: TestbedRecord) -> float:
 
 
 def run_row(run: int, start_goal: int, exit_code: int,
-            rec: Optional[TestbedRecord]) -> RunRow:
+            rec: Optional[TestbedRecord], seed: int = 0) -> RunRow:
     """The row of one run; without a record (the run failed early) only what is known."""
-    row = RunRow(run, start_goal, exit_code)
+    row = RunRow(run, start_goal, exit_code, seed=seed)
     if rec is None:
         row.note = "no record"
         return row
@@ -73,13 +74,14 @@ def silence_cell(row: RunRow, topic: str) -> str:
 
 def row_cells(row: RunRow, topics: Sequence[str]) -> List[str]:
     path = "-" if math.isnan(row.path_time_s) else f"{row.path_time_s:.0f} s"
-    return ([str(row.run), str(row.start_goal), str(row.exit_code), path, str(row.migrations),
+    return ([str(row.run), str(row.start_goal), str(row.seed), str(row.exit_code), path,
+             str(row.migrations),
              str(row.restarts)] + [silence_cell(row, t) for t in topics]
             + [str(len(row.violations)), row.note])
 
 
 def header(topics: Sequence[str]) -> List[str]:
-    return (["run", "start goal", "exit", "path time", "migrations", "restarts"]
+    return (["run", "start goal", "seed", "exit", "path time", "migrations", "restarts"]
             + [f"{t} longest/tolerance" for t in topics] + ["violations", "note"])
 
 
@@ -126,12 +128,13 @@ def write_csv(path: str, rows: Sequence[RunRow]):
     topics = topics_of(rows)
     with open(path, "w", newline="") as f:
         out = csv.writer(f)
-        out.writerow(["run", "start_goal", "exit_code", "path_time_s", "migrations", "restarts"]
+        out.writerow(["run", "start_goal", "seed", "exit_code", "path_time_s", "migrations",
+                      "restarts"]
                      + [f"longest_silence_s {t}" for t in topics]
                      + [f"tolerance_s {t}" for t in topics]
                      + ["violations", "violation_details", "note"])
         for r in rows:
-            out.writerow([r.run, r.start_goal, r.exit_code, _number(r.path_time_s),
+            out.writerow([r.run, r.start_goal, r.seed, r.exit_code, _number(r.path_time_s),
                           r.migrations, r.restarts]
                          + [_number(r.longest_s.get(t, math.nan)) for t in topics]
                          + [_number(r.tolerances.get(t, math.nan)) for t in topics]

@@ -340,7 +340,9 @@ class DecisionNode(AgentActions):
         if state is None:
             stat.summary(DiagnosticStatus.OK, "no decision yet")
             return stat
-        stat.summary(DiagnosticStatus.OK, f"link {state.bandwidth_mbps:.1f} Mbit/s, "
+        # state.bandwidth_mbps is what the allocator may place: the estimate less the stay
+        # margin, 0 on a weak link (DecisionEngine.usable_bandwidth).
+        stat.summary(DiagnosticStatus.OK, f"link usable {state.bandwidth_mbps:.1f} Mbit/s, "
                      f"{state.admit_bandwidth_mbps:.1f} held for moves out")
         for s in self.ch.scale_names:
             stat.add(f"{s} background load [%]", f"{state.scale_load.get(s, 0.0):.0f}")

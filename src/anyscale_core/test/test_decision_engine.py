@@ -406,19 +406,12 @@ def test_a_weak_link_brings_every_node_home_planned_and_lets_none_out(testbed_ch
     assert remote(e) == ["amcl", "ar_recognition"]
 
 
-def test_a_weak_link_keeps_amcl_out_while_it_carries_amcl_alone(testbed_ch):
+@pytest.mark.parametrize("weak_link_mbps, bandwidth", [(5.5, 6.0), (0.0, 1.0)])
+def test_a_thin_link_that_is_not_weak_keeps_amcl_out(testbed_ch, weak_link_mbps, bandwidth):
     e = DecisionEngine(testbed_ch, make_allocator("paper"),
-                       DecisionParams(bandwidth_hold_s=0.0, hysteresis_s=0.0, weak_link_mbps=5.5))
+                       DecisionParams(bandwidth_hold_s=0.0, hysteresis_s=0.0,
+                                      weak_link_mbps=weak_link_mbps))
     e.adopt_or_start(reports(0.0), 0.0)
     for t in range(1, 4):
-        e.tick(reports(float(t), bandwidth=6.0), float(t))
-    assert remote(e) == ["amcl"]
-
-
-def test_without_a_weak_link_threshold_a_thin_link_keeps_amcl_out(testbed_ch):
-    e = DecisionEngine(testbed_ch, make_allocator("paper"),
-                       DecisionParams(bandwidth_hold_s=0.0, hysteresis_s=0.0))
-    e.adopt_or_start(reports(0.0), 0.0)
-    for t in range(1, 4):
-        e.tick(reports(float(t), bandwidth=1.0), float(t))
+        e.tick(reports(float(t), bandwidth=bandwidth), float(t))
     assert remote(e) == ["amcl"]

@@ -1,5 +1,6 @@
 // Entry point of the anyscale_agent node.
 #include <csignal>
+#include <cstdio>
 
 #include "anyscale_agent_cpp/agent_node.h"
 
@@ -14,6 +15,10 @@ void requestShutdown(int)
 
 int main(int argc, char** argv)
 {
+  // roscpp prints INFO to stdout, which roslaunch's output="screen" makes a pipe: block
+  // buffered, the lines reached the log only at exit, and not at all when the agent was
+  // killed (an evaluation run's laptop agent logged nothing after a long outage).
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);
   ros::init(argc, argv, "anyscale_agent", ros::init_options::NoSigintHandler);
   std::signal(SIGINT, requestShutdown);
   std::signal(SIGTERM, requestShutdown);

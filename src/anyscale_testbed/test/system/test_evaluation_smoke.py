@@ -22,8 +22,8 @@ OUTPUTS = ("evaluation.txt", "evaluation.md", "evaluation.csv", "fig5_paths.png"
 def evaluate(out, timeout_s):
     return subprocess.run(
         [sys.executable, os.path.join(ROOT, "scripts", "run_evaluation.py"), "--world",
-         "small_loop", "--seeds", "1", "--runs", RUNS, "--duration", str(DURATION_S),
-         "--out", str(out)], capture_output=True, text=True, timeout=timeout_s)
+         "small_loop", "--seeds", "1", "--baseline-runs", "1", "--runs", RUNS, "--duration",
+         str(DURATION_S), "--out", str(out)], capture_output=True, text=True, timeout=timeout_s)
 
 
 @pytest.fixture(scope="module")

@@ -61,12 +61,51 @@ def test_script_reports_errors_without_traceback(tmp_path):
     assert f"{bad}: scales: expected at least one scale" in run.stderr
 
 
-@pytest.mark.parametrize("command", ["check", "plan", "simulate"])
+@pytest.mark.parametrize("command", ["check", "plan", "simulate", "profile", "thresholds",
+                                     "top", "model draft"])
 def test_every_command_has_help(command, capsys):
     with pytest.raises(SystemExit) as done:
-        main([command, "--help"])
+        main(command.split() + ["--help"])
     assert done.value.code == 0
-    assert "usage: anyscale " + command in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "usage: anyscale " + command in out
+    if command != "simulate":           # the study's own options, see its README
+        assert "example" in out
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["profile"], "anyscale profile: error: the following arguments are required: MODEL "
+                  "(see anyscale profile --help)"),
+    (["profile", "m.yaml", "--window", "-3"], "anyscale profile: error: argument --window: "
+                                              "expected a number in (0, 86400], got -3"),
+    (["thresholds", "m.yaml", "--connection", "a:b:/t"], "anyscale thresholds: error: one of "
+                                                          "the arguments --probe --probe-script "
+                                                          "is required"),
+    (["thresholds", "m.yaml", "--connection", "a:b:/t", "--probe", "/p", "--probe-script",
+      "x"], "argument --probe-script: not allowed with argument --probe"),
+    (["thresholds", "m.yaml", "--connection", "a:b:/t", "--rates", "5,x", "--probe", "/p"],
+     "argument --rates: expected numbers separated by commas, got '5,x'"),
+])
+def test_usage_errors_are_one_line_and_exit_2(argv, message, capsys):
+    with pytest.raises(SystemExit) as done:
+        main(argv)
+    assert done.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
+
+
+def test_profile_and_thresholds_refuse_bad_files_and_options(testbed_path, tmp_path, capsys):
+    missing = str(tmp_path / "none.yaml")
+    assert main(["profile", missing]) == 2
+    assert main(["thresholds", testbed_path, "--connection", "laser:amcl:/scan",
+                 "--probe", "/amcl_error"]) == 2
+    assert main(["thresholds", testbed_path, "--connection", "laser:amcl:/scan",
+                 "--probe", "/e", "--condition", "m.data < 1", "--quota", "1.5"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"anyscale profile: error: {missing}: no such file",
+                   "anyscale thresholds: error: --probe: needs --condition EXPR (true when "
+                   "correct)",
+                   "anyscale thresholds: error: --quota: expected a share in (0, 1], got 1.5"]
 
 
 def test_simulate_without_the_study_says_what_to_install(monkeypatch, capsys):

@@ -164,30 +164,56 @@ def this_machine() -> Machine:
     return Machine(os.cpu_count() or 1, round(ghz, 2) or 1.0, memory_mb)
 
 
+class RateCounter:
+    """Messages and serialized bytes per (topic, publisher) received between open() and
+    close(), with rospy.AnyMsg subscribers: nothing is deserialised, and the callerid tells two
+    publishers of one topic apart. Shared by `model draft` and `profile` (a node's output rate
+    while its CPU is measured)."""
+
+    def __init__(self, topics: Sequence[str]):
+        import rospy
+        self._counts: Dict[Tuple[str, str], List[float]] = defaultdict(lambda: [0, 0])
+        self._open = False
+        self._start = self._end = 0.0
+        self._subscribers = [rospy.Subscriber(t, rospy.AnyMsg, self._on_message,
+                                              callback_args=t, queue_size=100) for t in topics]
+
+    def _on_message(self, msg, topic):
+        if self._open:
+            entry = self._counts[(topic, msg._connection_header.get("callerid", ""))]
+            entry[0] += 1
+            # rospy gives one process one subscription per topic: where this process also
+            # subscribes the topic typed (profile's state hand-off of /amcl_pose), the message
+            # arrives deserialised and its size is not known; it is counted without bytes.
+            entry[1] += len(getattr(msg, "_buff", b""))
+
+    def open(self):
+        self._counts.clear()
+        self._start = time.monotonic()
+        self._open = True
+
+    def close(self) -> Dict[Tuple[str, str], Rate]:
+        """The rates over the window since open(); the subscribers are kept for another."""
+        self._open = False
+        elapsed = max(time.monotonic() - self._start, 1e-9)
+        return {key: Rate(n / elapsed, size / elapsed) for key, (n, size) in self._counts.items()}
+
+    def unregister(self):
+        for s in self._subscribers:
+            s.unregister()
+
+
 def count_rates(topics: Sequence[str], seconds: float) -> Dict[Tuple[str, str], Rate]:
     """(topic, publisher) -> messages and bytes per second received over `seconds`, counted
     after SETTLE_S so connection set-up and latched messages are not counted."""
-    import rospy
-    counts: Dict[Tuple[str, str], List[float]] = defaultdict(lambda: [0, 0])
-    window = {"open": False}
-
-    def on_message(msg, topic):
-        if window["open"]:
-            entry = counts[(topic, msg._connection_header.get("callerid", ""))]
-            entry[0] += 1
-            entry[1] += len(msg._buff)
-
-    subscribers = [rospy.Subscriber(t, rospy.AnyMsg, on_message, callback_args=t, queue_size=100)
-                   for t in topics]
-    time.sleep(SETTLE_S)
-    window["open"] = True
-    start = time.monotonic()
-    time.sleep(seconds)
-    window["open"] = False
-    elapsed = time.monotonic() - start
-    for s in subscribers:
-        s.unregister()
-    return {key: Rate(n / elapsed, size / elapsed) for key, (n, size) in counts.items()}
+    counter = RateCounter(topics)
+    try:
+        time.sleep(SETTLE_S)
+        counter.open()
+        time.sleep(seconds)
+        return counter.close()
+    finally:
+        counter.unregister()
 
 
 def collect_snapshot(seconds: float) -> GraphSnapshot:

@@ -58,12 +58,6 @@ LinkMonitor::LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, 
 
 void LinkMonitor::subscribe()
 {
-  // roscpp keeps one subscription per topic and process: subscribing while sub_ still holds
-  // it only adds a callback to the old connections, and a renewal after a long outage renewed
-  // nothing (seed 4 of the evaluation: no probe reached the master's agent for the rest of the
-  // run, so the laptop counted as out of reach on a good link). Released first, the
-  // subscription ends (unregistered, its connections closed) and the new one connects afresh.
-  sub_.shutdown();
   const auto hints = ros::TransportHints().tcpNoDelay();
   if (is_master_)
     sub_ = nh_.subscribe("/anyscale/link/probe", 20, &LinkMonitor::onProbe, this, hints);

@@ -58,6 +58,16 @@ LinkMonitor::LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, 
 
 void LinkMonitor::subscribe()
 {
+  // A renewal must make a new subscription, not add a callback to the old one. roscpp retries a
+  // dropped publisher connection, but when that retry's connect() fails at once (ENETUNREACH
+  // while the carrier is down) it never tries again (TransportPublisherLink::onRetryTimer), and
+  // it keeps one subscription per topic and process: subscribing while sub_ still held it only
+  // added a callback to the dead link (evaluation seed 4: no probe reached the master's agent
+  // for the rest of the run, and the laptop counted as out of reach on a good link; regression
+  // test test_link_probe_renewal). Released first, the subscription ends and the new one asks
+  // the master for the publishers and connects afresh. On a scale other than the master's this
+  // waits for the master; the timer thread has nothing to send meanwhile: the link is down.
+  sub_.shutdown();
   const auto hints = ros::TransportHints().tcpNoDelay();
   if (is_master_)
     sub_ = nh_.subscribe("/anyscale/link/probe", 20, &LinkMonitor::onProbe, this, hints);
@@ -70,8 +80,8 @@ void LinkMonitor::resubscribeIfSilent(double t)
   // After a long outage TCP's retransmission backoff can hold a connection silent for minutes
   // once the link is back (a 100 s outage: nothing in the next 50 s), and roscpp sees no error
   // on a connection that only waits. A new subscription connects at once. Only the subscriber
-  // is renewed: it is touched by this thread alone, and needs no call to the master under
-  // mutex_.
+  // is renewed: it is touched by this thread alone, and its calls to the master are made
+  // without mutex_ held.
   const double heard = last_heard_;
   if (std::isnan(heard) || t - heard < kResubscribeAfterS || t - resubscribed_at_ < kResubscribeAfterS)
     return;

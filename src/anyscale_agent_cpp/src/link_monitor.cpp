@@ -6,6 +6,8 @@
 #include <cmath>
 #include <limits>
 
+#include "anyscale_agent_cpp/tcp_reachability.h"
+
 namespace anyscale_agent
 {
 
@@ -24,6 +26,7 @@ LinkMonitor::LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, 
   {
     pub_ = nh.advertise<anyscale_msgs::LinkProbe>("/anyscale/link/echo", 20);
     subscribe();
+    renew_thread_ = std::thread(&LinkMonitor::renewWhenAsked, this);
     timer_ = nh.createSteadyTimer(ros::WallDuration(options_.probe_period_s),
                                   [this](const ros::SteadyTimerEvent&) { resubscribeIfSilent(now()); });
     return;
@@ -31,6 +34,7 @@ LinkMonitor::LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, 
   // A short queue: probes queued behind a dead link are stale by the time it returns.
   pub_ = nh.advertise<anyscale_msgs::LinkProbe>("/anyscale/link/probe", 2);
   subscribe();
+  renew_thread_ = std::thread(&LinkMonitor::renewWhenAsked, this);
   if (options_.bulk_bytes > 0 && !options_.icmp)
   {
     bandwidth_method_ = "ROS probes echoed by the master's agent (~link_bandwidth_by_icmp false)";
@@ -65,8 +69,7 @@ void LinkMonitor::subscribe()
   // added a callback to the dead link (evaluation seed 4: no probe reached the master's agent
   // for the rest of the run, and the laptop counted as out of reach on a good link; regression
   // test test_link_probe_renewal). Released first, the subscription ends and the new one asks
-  // the master for the publishers and connects afresh. On a scale other than the master's this
-  // waits for the master; the timer thread has nothing to send meanwhile: the link is down.
+  // the master for the publishers and connects afresh (in the renewal thread: see renewWhenAsked).
   sub_.shutdown();
   const auto hints = ros::TransportHints().tcpNoDelay();
   if (is_master_)
@@ -79,24 +82,59 @@ void LinkMonitor::resubscribeIfSilent(double t)
 {
   // After a long outage TCP's retransmission backoff can hold a connection silent for minutes
   // once the link is back (a 100 s outage: nothing in the next 50 s), and roscpp sees no error
-  // on a connection that only waits. A new subscription connects at once. Only the subscriber
-  // is renewed: it is touched by this thread alone, and its calls to the master are made
-  // without mutex_ held.
+  // on a connection that only waits. A new subscription connects at once.
   const double heard = last_heard_;
   if (std::isnan(heard) || t - heard < kResubscribeAfterS || t - resubscribed_at_ < kResubscribeAfterS)
     return;
   // Once per silence in the log: on the master it lasts as long as the other scales are gone.
-  if (resubscribed_at_ < heard)
+  if (heard != silence_logged_)
     ROS_INFO("no link %s for %.0f s: subscribing again, and every %.0f s until one comes", is_master_ ? "probe" : "echo",
              t - heard, kResubscribeAfterS);
-  subscribe();
-  resubscribed_at_ = t;
-  if (on_resubscribed_)
-    on_resubscribed_();
+  silence_logged_ = heard;
+  std::lock_guard<std::mutex> lock(renew_mutex_);
+  renewal_wanted_ = true;
+  wake_renewal_.notify_one();
+}
+
+void LinkMonitor::renewWhenAsked()
+{
+  std::unique_lock<std::mutex> lock(renew_mutex_);
+  while (true)
+  {
+    wake_renewal_.wait(lock, [this] { return renewal_wanted_ || renew_stopping_; });
+    if (renew_stopping_)
+      return;
+    lock.unlock();
+    // Away from the master's machine, a subscribe is a call to the master over the link, which
+    // roscpp makes with no timeout while holding its subscription lock (so its XML-RPC server,
+    // which other nodes ask for connections, waits too). Started during an outage or in a
+    // flicker of the link, one such call held a laptop agent for 220 s after the link was back
+    // (office floor, seed 4: no probe sent, the laptop out of reach on a 27 Mbit/s link). So it
+    // is made only when a connection to the master opens now; until then the timer asks again
+    // at its next probe.
+    const bool reachable =
+        is_master_ || tcpConnects(ros::master::getHost(), int(ros::master::getPort()), kMasterReachableWithinS);
+    if (reachable)
+    {
+      subscribe();
+      resubscribed_at_ = now();
+      if (on_resubscribed_)
+        on_resubscribed_();
+    }
+    lock.lock();
+    renewal_wanted_ = false;
+  }
 }
 
 LinkMonitor::~LinkMonitor()
 {
+  {
+    std::lock_guard<std::mutex> lock(renew_mutex_);
+    renew_stopping_ = true;
+  }
+  wake_renewal_.notify_all();
+  if (renew_thread_.joinable())
+    renew_thread_.join();
   {
     std::lock_guard<std::mutex> lock(mutex_);
     stopping_ = true;

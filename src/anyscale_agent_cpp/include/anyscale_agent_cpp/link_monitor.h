@@ -36,8 +36,8 @@ struct LinkOptions
 class LinkMonitor
 {
 public:
-  // `on_resubscribed` runs (in the timer thread) each time a silent link subscription was renewed:
-  // the agent's other subscriptions across the link may be held up the same way.
+  // `on_resubscribed` runs (in the renewal thread) each time a silent link subscription was
+  // renewed: the agent's other subscriptions across the link may be held up the same way.
   LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, std::string master_scale, LinkOptions options,
               std::function<void()> on_resubscribed = {});
   ~LinkMonitor();
@@ -51,11 +51,13 @@ private:
   void onTimer(const ros::SteadyTimerEvent&);
   void send(double t, ProbeKind kind);  // with mutex_ held
   void subscribe();                      // probes on the master, echoes elsewhere
-  void resubscribeIfSilent(double t);    // timer thread only
+  void resubscribeIfSilent(double t);    // timer thread: asks the renewal thread
+  void renewWhenAsked();                 // the renewal thread's loop
   void measureByEcho();                 // the ICMP thread's loop
   static double now();
 
   static constexpr double kResubscribeAfterS = 5.0;
+  static constexpr double kMasterReachableWithinS = 1.0;
   ros::NodeHandle nh_;
   std::function<void()> on_resubscribed_;
   std::string scale_;
@@ -71,7 +73,15 @@ private:
   double last_bulk_ = -1e9;
   bool peer_seen_ = false;
   std::atomic<double> last_heard_{std::numeric_limits<double>::quiet_NaN()};  // last probe/echo [steady s]
-  double resubscribed_at_ = 0.0;
+  std::atomic<double> resubscribed_at_{0.0};
+  double silence_logged_ = std::numeric_limits<double>::quiet_NaN();  // last_heard_ of the silence logged
+  // Renewals in a thread of their own: a subscribe calls the master and waits as long as TCP
+  // does, and the timer thread must go on sending probes meanwhile.
+  std::mutex renew_mutex_;
+  std::condition_variable wake_renewal_;
+  bool renewal_wanted_ = false;
+  bool renew_stopping_ = false;
+  std::thread renew_thread_;
   std::string bandwidth_method_;
   // Bulk probes by ICMP echo where the kernel lets this process send them (see icmp_echo.h),
   // in a thread of their own: a reading blocks for up to two timeouts.

@@ -63,8 +63,10 @@ def test_paper_violating_connection_sends_node_back(testbed_ch):
     both = PaperAllocator().decide(testbed_ch, testbed_ch.initial_mapping(), GOOD,
                                    AllocationContext()).assign
     amcl = testbed_ch.node_index("amcl")
-    d = PaperAllocator().step(testbed_ch, both, GOOD, AllocationContext(violating={amcl}))
+    why = "laser->amcl (/scan) 3.0 Hz on laptop < 5 Hz for 1.0 s of 2 s"
+    d = PaperAllocator().step(testbed_ch, both, GOOD, AllocationContext(violating={amcl: why}))
     assert [m.node for m in d.moves] == [amcl]
+    assert d.moves[0].reason.endswith(why)      # the reason names the connection
     assert where(testbed_ch, d.assign, "ar_recognition") == "laptop"
 
 

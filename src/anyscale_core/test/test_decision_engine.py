@@ -415,3 +415,44 @@ def test_a_thin_link_that_is_not_weak_keeps_amcl_out(testbed_ch, weak_link_mbps,
     for t in range(1, 4):
         e.tick(reports(float(t), bandwidth=bandwidth), float(t))
     assert remote(e) == ["amcl"]
+
+
+def test_after_a_loss_nothing_moves_out_until_the_link_has_been_up_for_hold_after_loss(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"),
+                       DecisionParams(bandwidth_hold_s=2.0, hysteresis_s=0.0,
+                                      hold_after_loss_s=6.0))
+    e.adopt_or_start(reports(0.0), 0.0)
+    for t in range(1, 5):
+        e.tick(reports(float(t)), float(t))
+    assert remote(e) == ["amcl", "ar_recognition"]                 # no loss yet: 2 s were enough
+    e.tick({"robot": reports(5.0)["robot"]}, 5.0)                 # the laptop goes silent
+    assert remote(e) == []
+    for t in (6.0, 8.0, 10.0, 10.9):                              # back at 6 s
+        assert e.tick(reports(t), t).events == []                 # not up for 6 s yet
+    assert [ev.node for ev in e.tick(reports(11.0), 11.0).events] == ["amcl"]
+
+
+def test_a_weak_link_is_not_a_loss_for_hold_after_loss(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"),
+                       DecisionParams(bandwidth_hold_s=2.0, hysteresis_s=0.0,
+                                      weak_link_mbps=5.5, hold_after_loss_s=60.0))
+    e.adopt_or_start(reports(0.0, bandwidth=4.0), 0.0)
+    for t in range(1, 4):
+        e.tick(reports(float(t), bandwidth=4.0), float(t))       # weak: nothing goes out
+    assert remote(e) == []
+    for t in range(4, 7):
+        e.tick(reports(float(t)), float(t))
+    assert remote(e) == ["amcl"]                                  # out after the 2 s hold only
+
+
+def test_the_return_reason_names_the_slow_connection(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"),
+                       DecisionParams(bandwidth_hold_s=0.0, startup_grace_s=0.0))
+    e.adopt_or_start(reports(0.0), 0.0)
+    e.tick(reports(1.0), 1.0)
+    e.tick(reports(2.0), 2.0)
+    assert "amcl" in remote(e)
+    slow = {"/scan": 1.0}
+    reasons = [ev.reason for t in (3.0, 4.0, 5.0) for ev in e.tick(reports(t, rates=slow), t).events
+               if ev.node == "amcl"]
+    assert reasons and "/scan" in reasons[0] and "1.0 Hz on laptop" in reasons[0], reasons

@@ -41,6 +41,9 @@ class DecisionParams:
     # A link measured below this is about to be lost: it counts as carrying nothing, so nodes
     # come home while a handover can still cross it (0: off). See DecisionEngine.usable_bandwidth.
     weak_link_mbps: float = 0.0
+    # After a link loss, a move out also waits until the link has been up this long (0: only
+    # bandwidth_hold_s). See BandwidthHold.
+    hold_after_loss_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -137,7 +140,8 @@ class DecisionEngine:
                          for c in ch.model.connections]
         self.load_filter: Dict[str, Tuple[float, float]] = {}   # scale -> (report time, load)
         self.backoff = [RestartBackoff(params.restart) for _ in ch.node_names]
-        self.bandwidth_hold = BandwidthHold(params.bandwidth_hold_s, params.bandwidth_margin)
+        self.bandwidth_hold = BandwidthHold(params.bandwidth_hold_s, params.bandwidth_margin,
+                                            params.hold_after_loss_s)
         self.start_acked_at: Dict[int, float] = {}   # node -> when its latest start was answered
         self.streams: List[Tuple[float, float]] = []  # (until when, Mbit/s) of earlier mappings
 
@@ -177,14 +181,14 @@ class DecisionEngine:
         measured = self._measured_bandwidth(reports, now)
         # Nothing measured (a link that just came back) has shown nothing: 0 for moves out.
         self.bandwidth_hold.add(now, measured if remote_up and not self.is_weak(measured, now)
-                                and math.isfinite(measured) else 0.0)
+                                and math.isfinite(measured) else 0.0, lost=not remote_up)
         state = replace(state, admit_bandwidth_mbps=self.bandwidth_hold.admissible(now))
         if not moves_allowed:
             restarts, restart_events = self._restarts(reports, up, now, starting)
             return TickResult(restarts + self._renewals(up), restart_events, state, [])
         violating = self._update_trackers(reports, now)
         ctx = AllocationContext(now, self.params.hysteresis_s, dict(self.migrated_back_at),
-                                frozenset(violating))
+                                violating)
         streams = required_bandwidth(self.ch, self.assign)
         weak = self.is_weak(measured, now)
         decision = self.allocator.step(self.ch, self.assign, state, ctx)
@@ -352,8 +356,9 @@ class DecisionEngine:
 
     def _update_trackers(self, reports, now) -> set:
         """Feed each connection's rate as received where its subscriber runs; return the
-        remote nodes on connections that spent `act_at_tolerance` of their tolerance."""
-        violating = set()
+        remote nodes on connections that spent `act_at_tolerance` of their tolerance, each with
+        the connection that did, its rate and how long it has been below freq_min."""
+        violating = {}
         model = self.ch.model
         for c, (conn, tracker) in enumerate(zip(model.connections, self.trackers)):
             pub, sub = self.ch.conn_pub[c], self.ch.conn_sub[c]
@@ -368,7 +373,11 @@ class DecisionEngine:
             rate = report.topic_rates.get(conn.topic, math.nan) if report else math.nan
             tracker.update(now, rate)
             if tracker.violated(now) or tracker.used_fraction(now) >= self.params.act_at_tolerance:
-                violating.update(i for i in ends if not self.ch.pinned[i])
+                counted = f"{rate:.1f} Hz" if math.isfinite(rate) else "no rate"
+                why = (f"{conn.name} {counted} on {self.ch.scale_names[self.assign[sub]]} < "
+                       f"{conn.freq_min:g} Hz for {tracker.below_for(now):.1f} s of "
+                       f"{conn.tolerance:g} s")
+                violating.update((i, why) for i in ends if not self.ch.pinned[i])
         return violating
 
     def _restarts(self, reports, up, now, starting,

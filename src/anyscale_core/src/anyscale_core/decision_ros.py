@@ -74,7 +74,8 @@ def read_params(get=rospy.get_param) -> NodeParams:
                             bandwidth_hold_s=number("bandwidth_hold_s", 5.0),
                             bandwidth_margin=number("bandwidth_margin", 0.3),
                             bandwidth_stay_margin=number("bandwidth_stay_margin", 0.15),
-                            weak_link_mbps=number("weak_link_mbps", 0.0))
+                            weak_link_mbps=number("weak_link_mbps", 0.0),
+                            hold_after_loss_s=number("hold_after_loss_s", 0.0))
     if engine.act_at_tolerance > 1.0:
         raise ParamError(f"~act_at_tolerance: expected 0..1, got {engine.act_at_tolerance:g}")
     if engine.bandwidth_stay_margin > engine.bandwidth_margin:

@@ -96,6 +96,9 @@ def parse_args(argv, default_out: str):
                    help="laptop CPU quota (default: the calibration file's)")
     p.add_argument("--allocator", default="paper", help="paper (default), paper_local, optimal")
     p.add_argument("--hysteresis", type=float, default=10.0, help="the paper's T in s (10)")
+    p.add_argument("--hold-after-loss", type=float, default=None, metavar="S",
+                   help="after a link loss, no move out until the link has been up this long "
+                        "(default: robot.launch's, 20)")
     p.add_argument("--model", default=None, help="system model (default: the nav demo's)")
     p.add_argument("--cold-start", action="store_true",
                    help="agents keep no warm standbys: every start imports anew (to compare)")
@@ -170,7 +173,9 @@ def main(default_out: str, argv=None) -> int:
                 f"allocator:={args.allocator}", f"hysteresis_s:={args.hysteresis}",
                 f"uplink_interface:={bed.uplink_interface('robot')}",
                 f"warm_start:={str(not args.cold_start).lower()}"]
-                + ([f"goals:={json.dumps(goals)}"] if goals else []))
+                + ([f"goals:={json.dumps(goals)}"] if goals else [])
+                + ([f"hold_after_loss_s:={args.hold_after_loss}"]
+                   if args.hold_after_loss is not None else []))
             session.roslaunch("laptop", "laptop", [
                 "anyscale_nav_demo", "laptop.launch", f"model:={model}",
                 f"warm_start:={str(not args.cold_start).lower()}"])

@@ -1,6 +1,6 @@
 """What every allocator takes and returns, and the scales a node may move to right now."""
 from dataclasses import dataclass, field
-from typing import FrozenSet, List, Mapping
+from typing import List, Mapping
 
 import numpy as np
 
@@ -14,7 +14,8 @@ class AllocationContext:
     now: float = 0.0                               # s
     hysteresis_s: float = 0.0                      # the paper's T
     migrated_back_at: Mapping[int, float] = field(default_factory=dict)  # node -> time (s)
-    violating: FrozenSet[int] = frozenset()        # nodes whose connections break freq/tolerance
+    # node -> which of its connections is below freq_min, and for how long (for the reason)
+    violating: Mapping[int, str] = field(default_factory=dict)
 
     def held_on_master(self, i: int) -> bool:
         """Node i may not leave the master: it violates, or came back less than T ago."""

@@ -53,9 +53,14 @@ def number_list(text: str):
     return values
 
 
+def add_seconds(parser, flag: str, default: float, help: str):
+    """An option of seconds in (0, 86400], its default named at the end of its help."""
+    parser.add_argument(flag, type=positive, default=default, metavar="S",
+                        help=f"{help} (default: {default:g})")
+
+
 def add_start_timeout(parser: argparse.ArgumentParser):
-    parser.add_argument("--start-timeout", type=positive, default=60.0, metavar="S",
-                        help="how long a node may take to register (default: 60)")
+    add_seconds(parser, "--start-timeout", 60.0, "how long a node may take to register")
 
 
 def require_model_file(path: str):

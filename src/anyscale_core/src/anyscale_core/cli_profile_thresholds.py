@@ -2,8 +2,8 @@
 the running system through the AnyScale agents, each node's cpu_usage and memory_mb, and a
 connection's freq_min, freq_opt and tolerance. The rospy parts (profile_ros.py,
 thresholds_ros.py) are imported only when they run."""
-from .cli_common import (RUNNING_AGENTS, add_command, add_start_timeout, number_list, positive,
-                         require_model_file)
+from .cli_common import (RUNNING_AGENTS, add_command, add_seconds, add_start_timeout,
+                         number_list, require_model_file)
 from .model import ModelError
 
 
@@ -48,13 +48,10 @@ def add_profile_parser(sub):
                                                         "place unless --dry-run)")
     profile.add_argument("--nodes", metavar="A,B", default="",
                          help="measure only these nodes (default: every node of the model)")
-    profile.add_argument("--warmup", type=positive, default=10.0, metavar="S",
-                         help="seconds after a node's start before its window (default: 10)")
-    profile.add_argument("--window", type=positive, default=30.0, metavar="S",
-                         help="seconds of samples per window (default: 30)")
-    profile.add_argument("--lease", type=positive, default=10.0, metavar="S",
-                         help="lease of each node it starts: they end this long after the "
-                              "command dies (default: 10)")
+    add_seconds(profile, "--warmup", 10.0, "seconds after a node's start before its window")
+    add_seconds(profile, "--window", 30.0, "seconds of samples per window")
+    add_seconds(profile, "--lease", 10.0, "lease of each node it starts: they end this long "
+                                          "after the command dies")
     add_start_timeout(profile)
     profile.add_argument("--dry-run", action="store_true", help="measure, print, do not write "
                                                                 "MODEL")
@@ -118,17 +115,14 @@ def add_thresholds_parser(sub):
     th.add_argument("--value", metavar="EXPR",
                     help="with --probe: a number per message to minimise (e.g. an error); "
                          "freq_opt is where its mean stops improving")
-    th.add_argument("--probe-period", type=positive, default=1.0, metavar="S",
-                    help="with --probe-script: seconds between runs (default: 1)")
+    add_seconds(th, "--probe-period", 1.0, "with --probe-script: seconds between runs")
     th.add_argument("--rates", type=number_list, metavar="HZ,...",
                     help="rates to try (default: the source's rate x 1, 0.8, ..., 0.1)")
     th.add_argument("--outages", type=number_list, metavar="S,...",
                     help="interruptions to try, s (default: 0.5,1,2,3,5,8)")
-    th.add_argument("--settle", type=positive, default=5.0, metavar="S",
-                    help="seconds at a new rate, or after an interruption's recovery, before "
-                         "the probe counts (default: 5)")
-    th.add_argument("--step", type=positive, default=20.0, metavar="S",
-                    help="seconds the probe is watched per step (default: 20)")
+    add_seconds(th, "--settle", 5.0, "seconds at a new rate, or after an interruption's "
+                                     "recovery, before the probe counts")
+    add_seconds(th, "--step", 20.0, "seconds the probe is watched per step")
     th.add_argument("--quota", type=float, default=0.95, metavar="SHARE",
                     help="share of the probe's checks that must pass (default: 0.95)")
     th.add_argument("--improvement", type=float, default=0.1, metavar="SHARE",

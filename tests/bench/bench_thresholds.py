@@ -35,6 +35,9 @@ import yaml
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
+sys.path.insert(0, os.path.join(ROOT, "src", "anyscale_core", "src"))
+from anyscale_core.process_group import stop_process_group  # noqa: E402
+
 DEMO = os.path.join(ROOT, "src", "anyscale_nav_demo")
 MODEL = os.path.join(DEMO, "config", "testbed.yaml")
 WORLD = os.path.join(DEMO, "maps", "office_floor_world.yaml")
@@ -72,14 +75,7 @@ def parse_args(argv):
 
 def stop(proc):
     if proc.poll() is None:
-        try:
-            os.killpg(proc.pid, signal.SIGINT)
-            proc.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-        except ProcessLookupError:
-            proc.wait()
+        stop_process_group(proc, 20)
 
 
 def raise_interrupt(*_):

@@ -16,7 +16,6 @@ process group."""
 import json
 import os
 import shutil
-import signal
 import subprocess
 import sys
 
@@ -27,7 +26,7 @@ import yaml
 
 from anyscale_core.polling import wait_for
 
-from test_model_draft_live import free_port, stock_executable
+from private_roscore import Processes, free_port, private_master_env, stock_executable
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 SCRIPT = os.path.join(HERE, "..", "scripts", "anyscale")
@@ -54,18 +53,12 @@ def with_broken_node(text: str) -> str:
     return text.replace("connections:\n", BROKEN + "connections:\n", 1)
 
 
-class Graph:
+class Graph(Processes):
     """The private master, the two agents and whatever a test starts itself."""
 
     def __init__(self, tmp):
-        self.tmp = tmp
         port = free_port(PREFERRED_PORT)
-        self.env = {**os.environ, "ROS_MASTER_URI": f"http://localhost:{port}",
-                    "ROS_HOSTNAME": "localhost", "ROS_HOME": str(tmp / "ros_home"),
-                    "ROS_LOG_DIR": str(tmp / "log"), "PYTHONPATH": os.pathsep.join(sys.path),
-                    "PATH": "/usr/bin:" + os.environ["PATH"]}
-        self.env.pop("ROS_IP", None)
-        self.procs = []
+        super().__init__(tmp, private_master_env(port, tmp))
         self.agent_model = tmp / "agents_model.yaml"
         with open(RELAY_MODEL) as f:
             self.agent_model.write_text(with_broken_node(f.read()))
@@ -93,28 +86,6 @@ class Graph:
     def nodes(self) -> set:
         pubs, subs, services = self.master.getSystemState()
         return {n for table in (pubs, subs, services) for _, names in table for n in names}
-
-    def start(self, argv):
-        log = open(self.tmp / f"proc{len(self.procs)}.log", "w")
-        proc = subprocess.Popen(argv, env=self.env, stdout=log, stderr=subprocess.STDOUT,
-                                start_new_session=True)
-        log.close()
-        self.procs.append(proc)
-        return proc
-
-    def stop(self, proc):
-        try:
-            os.killpg(proc.pid, signal.SIGINT)
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-        except ProcessLookupError:
-            proc.wait()
-
-    def close(self):
-        for proc in reversed(self.procs):
-            self.stop(proc)
 
     def anyscale(self, *args, timeout=300, env=None):
         return subprocess.run([sys.executable, SCRIPT, *args], env=env or self.env,

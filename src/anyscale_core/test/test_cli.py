@@ -121,3 +121,13 @@ def test_unknown_options_of_other_commands_are_still_refused(testbed_path):
     with pytest.raises(SystemExit) as done:
         main(["check", testbed_path, "--runs", "1"])
     assert done.value.code == 2
+
+
+def test_help_lists_the_commands_in_their_order(capsys):
+    with pytest.raises(SystemExit) as done:
+        main(["--help"])
+    assert done.value.code == 0
+    out = capsys.readouterr().out
+    listed = [line.split()[0] for line in out.splitlines()
+              if line.startswith("    ") and not line.startswith("     ")]
+    assert listed == ["check", "plan", "simulate", "top", "model", "profile", "thresholds"]

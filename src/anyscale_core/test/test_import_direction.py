@@ -9,8 +9,8 @@ cycle: it may use neither tool package either. Every Python file (by ending or b
 shebang), launch file and package.xml of those packages is read as text; nothing is imported.
 
 One arrow is allowed, and only as a lazy import inside a function: `anyscale simulate` (the
-one CLI, anyscale_core's cli.py) imports anyscale_study when it runs and says what to install
-where the study is missing (test_cli.py checks that).
+one CLI, anyscale_core's cli_simulate.py) imports anyscale_study when it runs and says what to
+install where the study is missing (test_cli.py checks that).
 
 `/usr/bin/python3 test_import_direction.py` prints the package-level graph it checks.
 """
@@ -32,7 +32,7 @@ FORBIDDEN: Dict[str, Set[str]] = {
     "anyscale_nav_demo": TOOLING,
 }
 # file (relative to src/) -> tooling packages it may import, inside a function only
-LAZY_OPTIONAL = {"anyscale_core/src/anyscale_core/cli.py": {"anyscale_study"}}
+LAZY_OPTIONAL = {"anyscale_core/src/anyscale_core/cli_simulate.py": {"anyscale_study"}}
 WORKSPACE_PACKAGES = sorted(d for d in os.listdir(SRC)
                             if os.path.isfile(os.path.join(SRC, d, "package.xml")))
 # In launch and rostest files: <node pkg="X" ...>, <include file="$(find X)/...">.

@@ -3,8 +3,6 @@ if free) in the root namespace, Debian's stock `rostopic pub -r 10`, `topic_tool
 `rostopic echo`; the draft, filled in, passes `anyscale check` and `plan`. Also: no master
 running is one line and exit 2. Everything started here is killed by process group."""
 import os
-import signal
-import socket
 import subprocess
 import sys
 
@@ -14,63 +12,24 @@ import yaml
 from anyscale_core.polling import wait_for
 
 from core_test_data import filled_draft
+from private_roscore import Processes, free_port, private_master_env, stock_executable
 
 SCRIPT = os.path.join(os.path.dirname(__file__), "..", "scripts", "anyscale")
 PREFERRED_PORT = 11498
 
 
-def free_port(preferred: int) -> int:
-    """`preferred` when nothing listens there, else a port the kernel hands out."""
-    for port in (preferred, 0):
-        with socket.socket() as s:
-            try:
-                s.bind(("localhost", port))
-                return s.getsockname()[1]
-            except OSError:
-                continue
-    raise OSError("no free port")
-
-
-def stock_executable(package: str, name: str) -> str:
-    """A Debian- or catkin-installed executable, where the agent finds it: <prefix>/lib/pkg/."""
-    prefixes = [p for p in os.environ.get("CMAKE_PREFIX_PATH", "").split(":") if p] + ["/usr"]
-    for prefix in prefixes:
-        path = os.path.join(prefix, "lib", package, name)
-        if os.access(path, os.X_OK):
-            return path
-    pytest.skip(f"{package}/{name} is not installed (apt-get install topic-tools)")
-
-
 @pytest.fixture
 def ros_env(tmp_path):
-    port = free_port(PREFERRED_PORT)
-    return {**os.environ, "ROS_MASTER_URI": f"http://localhost:{port}",
-            "ROS_HOME": str(tmp_path / "ros_home"), "ROS_LOG_DIR": str(tmp_path / "log"),
-            "PYTHONPATH": os.pathsep.join(sys.path), "PATH": "/usr/bin:" + os.environ["PATH"]}
+    return private_master_env(free_port(PREFERRED_PORT), tmp_path)
 
 
 @pytest.fixture
-def started(tmp_path):
-    """start(argv, env): a process in its own session; all are ended (SIGINT, then SIGKILL)
-    and reaped after the test."""
-    procs = []
-
-    def start(argv, env):
-        log = open(tmp_path / f"{len(procs)}.log", "w")
-        procs.append(subprocess.Popen(argv, env=env, stdout=log, stderr=subprocess.STDOUT,
-                                      start_new_session=True))
-        log.close()
-        return procs[-1]
-    yield start
-    for proc in reversed(procs):
-        try:
-            os.killpg(proc.pid, signal.SIGINT)
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-        except ProcessLookupError:
-            proc.wait()
+def started(tmp_path, ros_env):
+    """start(argv): a process with ros_env in its own session; all are ended (SIGINT, then
+    SIGKILL) and reaped after the test."""
+    procs = Processes(tmp_path, ros_env)
+    yield procs.start
+    procs.close()
 
 
 def graph(env) -> dict:
@@ -90,12 +49,12 @@ def draft(env, *args):
 def test_draft_of_a_live_graph_passes_check_and_plan(ros_env, started, tmp_path):
     port = ros_env["ROS_MASTER_URI"].rsplit(":", 1)[1]
     relay = stock_executable("topic_tools", "relay")
-    started(["roscore", "-p", port], ros_env)
+    started(["roscore", "-p", port])
     assert wait_for(lambda: graph(ros_env), 20), "roscore did not come up"
     started(["rostopic", "pub", "-r", "10", "/chatter", "std_msgs/String", "data: hi",
-             "__name:=talker"], ros_env)
-    started([relay, "chatter", "/chatter_relay", "chatter:=/chatter", "__name:=relay"], ros_env)
-    started(["rostopic", "echo", "/chatter_relay", "__name:=echo"], ros_env)
+             "__name:=talker"])
+    started([relay, "chatter", "/chatter_relay", "chatter:=/chatter", "__name:=relay"])
+    started(["rostopic", "echo", "/chatter_relay", "__name:=echo"])
     ready = wait_for(lambda: "/echo" in graph(ros_env).get("/chatter_relay", [[], []])[1]
                      and "/relay" in graph(ros_env).get("/chatter", [[], []])[1], 20)
     assert ready, f"the stock nodes did not come up: {graph(ros_env)}"

@@ -7,7 +7,8 @@ from anyscale_core.model import ModelError
 from anyscale_core.thresholds_search import (ProbeBroken, StepResult, check_message,
                                              compile_condition, describe_step, find_rates,
                                              find_tolerance, next_step, outage_ladder,
-                                             predict_seconds, rate_ladder, subscriber_remaps,
+                                             predict_seconds, rate_and_longest_silence,
+                                             rate_ladder, subscriber_remaps, summarise_checks,
                                              throttle_argument, thresholds)
 
 
@@ -110,3 +111,16 @@ def test_prediction_and_description():
     text = describe_step(StepResult(5.0, 2.0, 9, 10, 0.1, 4.8), 0.95)
     assert text.startswith("2 s without messages (at 5 Hz): delivered 4.80 Hz; probe passed 9 "
                            "of 10, mean value 0.1: NOT correct")
+
+
+def test_a_steps_checks_summarised():
+    assert summarise_checks([(True, 1.0), (False, 3.0), (True, None)]) == (2, 3, 2.0)
+    assert summarise_checks([(True, None)]) == (1, 1, None)
+    assert summarise_checks([]) == (0, 0, None)
+
+
+def test_rate_and_longest_silence_as_the_subscriber_saw_them():
+    # 10 s open, a message a second but none from 4 to 7 s.
+    rate, silence = rate_and_longest_silence(0.0, [1, 2, 3, 4, 7, 8, 9], 10.0)
+    assert rate == pytest.approx(0.7) and silence == pytest.approx(3.0)
+    assert rate_and_longest_silence(5.0, [], 7.5) == (0.0, 2.5)

@@ -19,12 +19,13 @@ from its last pose), as the decision node starts them.
 """
 import threading
 import time
-from typing import Callable, Dict, List, Mapping, Optional, Sequence, Tuple
+from typing import Callable, Dict, List, Mapping, Optional, Sequence
 
 from .agent_client import AgentClient
 from .model import ModelError, SystemModel
 from .model_draft_ros import system_state
 from .model_todos import home_mapping
+from .process_group import log_tail
 from .profile_plan import CpuSample
 
 RUNNING, EXITED, REPLACED, LEASE_EXPIRED, STANDBY = 1, 3, 4, 5, 6
@@ -36,15 +37,11 @@ class SessionError(ModelError):
     """The graph cannot be measured as it is, or a node would not start: one line, exit 2."""
 
 
-def _log_tail(path: str, lines: int = 3) -> str:
-    """The last lines of a node's log where this machine can read it (the agent of another
-    machine keeps it there)."""
-    try:
-        with open(path, errors="replace") as f:
-            tail = [line.rstrip() for line in f.readlines()[-lines:] if line.strip()]
-    except OSError:
-        return ""
-    return (": " + " | ".join(tail)) if tail else ""
+def _log_tail(path: str) -> str:
+    """": " and the last lines of a node's log where this machine can read it (the agent of
+    another machine keeps it there); "" otherwise."""
+    tail = log_tail(path)
+    return f": {tail}" if tail else ""
 
 
 class AgentSession:
@@ -184,12 +181,16 @@ class AgentSession:
                 on_start(node, self.home[node])
                 self.start(node, self.home[node])
 
+    def handoff(self, node: str) -> Dict[str, float]:
+        """The private parameters `node` is started with: its state hand-off (the last pose)."""
+        with self._lock:
+            return dict(self._handoff.get(node, {}))
+
     def start(self, node: str, scale: str, lease: bool = True) -> int:
         """Starts `node` on `scale` and waits until the master lists it; SessionError with the
         agent's reason, the exit and the log's last lines when it does not come up."""
         from .ros_convert import param_overrides_to_kv
-        with self._lock:
-            overrides = sorted(self._handoff.get(node, {}).items())
+        overrides = sorted(self.handoff(node).items())
         lease_s = self.lease_s if lease else 0.0
         try:
             reply = self.agents.start(scale, node, param_overrides_to_kv(overrides), lease_s)

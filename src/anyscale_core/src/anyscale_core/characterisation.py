@@ -6,7 +6,7 @@ allocator modules work on, so that a decision at N=200, K=20 stays in numpy.
 """
 from dataclasses import dataclass
 import math
-from typing import Dict, Mapping, Optional, Tuple
+from typing import Dict, Optional, Tuple
 
 import numpy as np
 
@@ -62,9 +62,6 @@ class Characterisation:
 
     def as_dict(self, assign: np.ndarray) -> Dict[str, str]:
         return {n: self.scale_names[k] for n, k in zip(self.node_names, assign)}
-
-    def from_dict(self, mapping: Mapping[str, str]) -> np.ndarray:
-        return np.array([self.scale_index(mapping[n]) for n in self.node_names], dtype=np.int64)
 
     def bandwidth_of_node(self, i: int) -> float:
         """Mbit/s that node i moves over the network when it runs apart from all its peers."""

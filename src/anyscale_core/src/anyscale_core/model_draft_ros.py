@@ -174,7 +174,7 @@ class RateCounter:
         import rospy
         self._counts: Dict[Tuple[str, str], List[float]] = defaultdict(lambda: [0, 0])
         self._open = False
-        self._start = self._end = 0.0
+        self._start = 0.0
         self._subscribers = [rospy.Subscriber(t, rospy.AnyMsg, self._on_message,
                                               callback_args=t, queue_size=100) for t in topics]
 

@@ -47,6 +47,15 @@ def _is_todo(value: Any) -> bool:
     return isinstance(value, str) and value.strip() == TODO
 
 
+def _stand_in(item: dict, stand_ins: Mapping[str, Any], prefix: str, todos: set):
+    """Each key of `stand_ins` that holds a TODO in `item` gets its stand-in, and its key path
+    (`prefix.key`) goes into `todos`."""
+    for key, stand_in in stand_ins.items():
+        if _is_todo(item.get(key)):
+            item[key] = stand_in
+            todos.add(f"{prefix}.{key}")
+
+
 def parse_model_with_todos(data: Any, source: str = "<model>") -> ModelWithTodos:
     """The model with stand-ins at the TODOs it may hold; ModelError as parse_model raises it
     for everything else (a TODO elsewhere included)."""
@@ -55,47 +64,26 @@ def parse_model_with_todos(data: Any, source: str = "<model>") -> ModelWithTodos
     if not isinstance(tree, dict):
         return ModelWithTodos(parse_model(tree, source), frozenset())
     for scale in _items(tree.get("scales")):
-        for key, stand_in in SCALE_STAND_INS.items():
-            if _is_todo(scale.get(key)):
-                scale[key] = stand_in
-                todos.add(f"scales.{scale.get('name')}.{key}")
+        _stand_in(scale, SCALE_STAND_INS, f"scales.{scale.get('name')}", todos)
     network = tree.get("network")
     if isinstance(network, dict):
-        for key, stand_in in NETWORK_STAND_INS.items():
-            if _is_todo(network.get(key)):
-                network[key] = stand_in
-                todos.add(f"network.{key}")
-        if _is_todo(network.get("technology")):
-            network["technology"] = "unknown"
-            todos.add("network.technology")
+        _stand_in(network, {**NETWORK_STAND_INS, "technology": "unknown"}, "network", todos)
     for node in _items(tree.get("nodes")):
         name = node.get("name")
-        for key, stand_in in NODE_STAND_INS.items():
-            if _is_todo(node.get(key)):
-                node[key] = stand_in
-                todos.add(f"nodes.{name}.{key}")
+        _stand_in(node, NODE_STAND_INS, f"nodes.{name}", todos)
         usage = node.get("cpu_usage")
         if isinstance(usage, dict):
-            for scale, value in usage.items():
-                if _is_todo(value):
-                    usage[scale] = CPU_USAGE_STAND_IN
-                    todos.add(f"nodes.{name}.cpu_usage.{scale}")
+            _stand_in(usage, dict.fromkeys(usage, CPU_USAGE_STAND_IN), f"nodes.{name}.cpu_usage",
+                      todos)
         if _is_todo(node.get("pinned")):
             # The draft offers `pinned: TODO` on nodes that only publish: not decided = not pinned.
             del node["pinned"]
             todos.add(f"nodes.{name}.pinned")
     for conn in _items(tree.get("connections")):
         key = connection_key(conn.get("publisher"), conn.get("subscriber"), conn.get("topic"))
-        for field, stand_in in CONNECTION_STAND_INS.items():
-            if _is_todo(conn.get(field)):
-                conn[field] = stand_in
-                todos.add(f"{key}.{field}")
-        if _is_todo(conn.get("freq_min")):
-            conn["freq_min"] = TINY_RATE
-            todos.add(f"{key}.freq_min")
-        if _is_todo(conn.get("freq_opt")):
-            conn["freq_opt"] = _number_or(conn.get("freq_min"), TINY_RATE)
-            todos.add(f"{key}.freq_opt")
+        _stand_in(conn, {**CONNECTION_STAND_INS, "freq_min": TINY_RATE}, key, todos)
+        # After freq_min: a TODO freq_opt stands in as freq_min (freq_opt >= freq_min).
+        _stand_in(conn, {"freq_opt": _number_or(conn.get("freq_min"), TINY_RATE)}, key, todos)
     return ModelWithTodos(parse_model(tree, source), frozenset(todos))
 
 

@@ -65,10 +65,6 @@ def _dotted(path: Path) -> str:
     return out
 
 
-def _line_start(text: str, index: int) -> int:
-    return text.rfind("\n", 0, index) + 1
-
-
 def update_model_text(text: str, numbers: Sequence[NumberEdit],
                       comments: Sequence[CommentBlock] = (), source: str = "<model>") -> str:
     """`text` with each number replaced in place and each comment block set above its item

@@ -63,6 +63,23 @@ def check_message(condition: Callable, value: Optional[Callable], message,
     return passed, number
 
 
+def summarise_checks(checks: Sequence[Tuple[bool, Optional[float]]]
+                     ) -> Tuple[int, int, Optional[float]]:
+    """(passed, checks, mean value or None) of a step's (passed, value) checks."""
+    values = [v for _, v in checks if v is not None]
+    return (sum(1 for ok, _ in checks if ok), len(checks),
+            sum(values) / len(values) if values else None)
+
+
+def rate_and_longest_silence(start: float, arrivals: Sequence[float], end: float
+                             ) -> Tuple[float, float]:
+    """(messages per second, longest silence in s) of the receipt times `arrivals` within
+    [start, end]: what the subscriber got, and the interruption as it saw it."""
+    edges = [start, *arrivals, end]
+    gaps = [b - a for a, b in zip(edges, edges[1:])]
+    return len(arrivals) / max(end - start, 1e-9), max(gaps)
+
+
 @dataclass(frozen=True)
 class StepResult:
     """One step: the stream at `rate_hz`, or interrupted for `outage_s` (then rate_hz is the

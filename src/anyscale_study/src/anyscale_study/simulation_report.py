@@ -1,5 +1,5 @@
 """`anyscale simulate`: runs the Fig. 7 study, prints its table beside the paper's figures and
-writes a CSV and a Fig. 7-style chart. cli.py calls add_arguments() and main()."""
+writes a CSV and a Fig. 7-style chart. cli_simulate.py calls add_arguments() and main()."""
 import csv
 import os
 import re

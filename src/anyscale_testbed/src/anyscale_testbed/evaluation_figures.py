@@ -18,7 +18,7 @@ the time (interference episodes): the bound keeps each episode where this run me
 """
 from dataclasses import dataclass, field
 import math
-from typing import Dict, List, Mapping, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 

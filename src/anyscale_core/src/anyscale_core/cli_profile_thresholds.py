@@ -1,0 +1,161 @@
+"""`anyscale profile` and `anyscale thresholds`: the commands that measure a model's numbers on
+the running system through the AnyScale agents, each node's cpu_usage and memory_mb, and a
+connection's freq_min, freq_opt and tolerance. The rospy parts (profile_ros.py,
+thresholds_ros.py) are imported only when they run."""
+from .cli_common import (RUNNING_AGENTS, add_command, add_seconds, add_start_timeout,
+                         number_list, require_model_file)
+from .model import ModelError
+
+
+def add_parsers(sub):
+    add_profile_parser(sub)
+    add_thresholds_parser(sub)
+
+
+def add_profile_parser(sub):
+    profile = add_command(
+        sub, "profile", run_profile,
+        help="measure each node's cpu_usage and memory_mb on every scale that may run it, into "
+             "the model",
+        description="Measure the CPU usage (paper, Table II) and memory of the model's nodes "
+                    "with the AnyScale\nagents, and write them into MODEL.\n\n"
+                    "Every node of the model that does not run yet is started where the paper "
+                    "starts it (its\npinned scale, else the master). A first window measures "
+                    "every node there. Then each\nmigratable node in turn is moved alone to "
+                    "each other scale with a cpu_usage key (memory\npermitting) and measured "
+                    "there while the rest of the system runs at home. A window is\n--warmup "
+                    "seconds of settling, then --window seconds of the agents' /proc samples "
+                    "(the\nnode's process group, as the agents report it at run time). "
+                    "cpu_usage is the mean\nin % of the scale's capacity: its cgroup CPU quota "
+                    "where it has one, else all its cores\n(the unit of the model and of the "
+                    "agents' scale load); memory_mb the largest RSS seen\non any scale. Each "
+                    "node gets a comment block in MODEL saying when and how it was\nmeasured; "
+                    "the rest of the file (comments, order, style) is kept as it is. TODOs in\n"
+                    "numeric fields (a fresh `anyscale model draft`) are accepted.\n\n"
+                    + RUNNING_AGENTS + "Nodes it starts run under a lease,\nso they end "
+                    "even if the command is killed; at the end it stops what it started and "
+                    "starts\nagain at home what it found running. The predicted time is "
+                    "printed first, then a\nprogress bar (on a terminal).",
+        epilog="examples:\n"
+               "  anyscale profile my_robot.yaml\n"
+               "  anyscale profile my_robot.yaml --nodes amcl --window 60 --dry-run --json\n"
+               "  anyscale profile $(rospack find anyscale_nav_demo)/config/testbed.yaml "
+               "--nodes amcl,ar_recognition\n\n"
+               "exit status: 0 done; 2 bad input, no master, a decision node running, an agent "
+               "missing,\na node that fails to start (one line on standard error); 130 "
+               "interrupted.")
+    profile.add_argument("model", metavar="MODEL", help="system model YAML file (updated in "
+                                                        "place unless --dry-run)")
+    profile.add_argument("--nodes", metavar="A,B", default="",
+                         help="measure only these nodes (default: every node of the model)")
+    add_seconds(profile, "--warmup", 10.0, "seconds after a node's start before its window")
+    add_seconds(profile, "--window", 30.0, "seconds of samples per window")
+    add_seconds(profile, "--lease", 10.0, "lease of each node it starts: they end this long "
+                                          "after the command dies")
+    add_start_timeout(profile)
+    profile.add_argument("--dry-run", action="store_true", help="measure, print, do not write "
+                                                                "MODEL")
+    profile.add_argument("--json", action="store_true",
+                         help="print the figures as JSON: {model, measured_at, warmup_s, "
+                              "window_s, measurements: [{node, scale, cpu_usage, "
+                              "cpu_percent_of_one_core, cpu_sd, samples, capacity_cores, quota, "
+                              "rss_mb, window_s, output_rates_hz}], memory_mb: {node: MB}, "
+                              "not_measured, written}")
+
+
+def add_thresholds_parser(sub):
+    th = add_command(
+        sub, "thresholds", run_thresholds,
+        help="find a connection's freq_min, freq_opt and tolerance with a correctness probe",
+        description="Find freq_min, freq_opt and the tolerance of one connection of MODEL "
+                    "(paper, Table I), as\nthe paper did by hand: feed the subscriber less and "
+                    "less and watch whether it still\nworks.\n\n"
+                    "The subscriber is restarted by this command with its input remapped to "
+                    "TOPIC_throttle,\nwhich `topic_tools throttle messages TOPIC RATE "
+                    "TOPIC_throttle` feeds. Step by step,\nhighest rate first (the source's "
+                    "rate times 1, 0.8, 0.6, 0.5, 0.4, 0.3, 0.2, 0.1, or\n--rates), the "
+                    "stream runs --settle seconds, then the probe is watched for --step\n"
+                    "seconds. Then, at freq_opt, the stream is cut for each of --outages "
+                    "seconds (shortest\nfirst), and the probe is watched from the cut until "
+                    "--step seconds after it. A step is\ncorrect when at least --quota of the "
+                    "probe's checks pass. Each ladder stops at its first\nincorrect step "
+                    "(the subscriber's state is suspect after it).\n\n"
+                    "The probe is a topic and a condition (--probe TOPIC --condition EXPR: one "
+                    "check per\nmessage; EXPR is Python over the message m, as in "
+                    "`rostopic echo --filter`; --value EXPR\nadds a number to minimise, e.g. "
+                    "an error), or a script (--probe-script CMD: run once\nevery "
+                    "--probe-period seconds, exit 0 = correct, 1 = not; any other exit stops "
+                    "the run).\n\n"
+                    "Reported: freq_min, the lowest rate that stays correct; freq_opt, the "
+                    "lowest correct rate\nwhose score (the mean --value, else the share of "
+                    "passed checks) is within --improvement\nof the best: above it the probe "
+                    "no longer improves; the tolerance, the longest\ninterruption that stays "
+                    "correct (0: critical). They are written into the connection in\nMODEL "
+                    "with a comment, unless --dry-run.\n\n" + RUNNING_AGENTS +
+                    "The subscriber runs on this\nmachine, unconstrained. At the end it is "
+                    "started again by its agent as it was.",
+        epilog="examples:\n"
+               "  anyscale thresholds testbed.yaml --connection laser:amcl:/scan \\\n"
+               "      --probe /amcl_error --condition 'm.data < 0.3' --value m.data\n"
+               "  anyscale thresholds relay.yaml --connection talker:relay:/chatter \\\n"
+               "      --probe-script './listener_ok.sh' --rates 10,5,2 --outages 1,2 --json\n\n"
+               "exit status: 0 done; 2 bad input (an unknown connection, a probe that never "
+               "passes at\nthe full rate or that breaks, no master, a missing agent, a node "
+               "that fails to start);\n130 interrupted.")
+    th.add_argument("model", metavar="MODEL", help="system model YAML file")
+    th.add_argument("--connection", required=True, metavar="PUB:SUB:TOPIC",
+                    help="the connection, as in the model: publisher:subscriber:topic")
+    probe = th.add_mutually_exclusive_group(required=True)
+    probe.add_argument("--probe", metavar="TOPIC", help="probe topic (one check per message)")
+    probe.add_argument("--probe-script", metavar="CMD",
+                       help="probe command line (split like a shell's, run without one)")
+    th.add_argument("--condition", metavar="EXPR",
+                    help="with --probe: Python expression over the message m that is true "
+                         "when correct")
+    th.add_argument("--value", metavar="EXPR",
+                    help="with --probe: a number per message to minimise (e.g. an error); "
+                         "freq_opt is where its mean stops improving")
+    add_seconds(th, "--probe-period", 1.0, "with --probe-script: seconds between runs")
+    th.add_argument("--rates", type=number_list, metavar="HZ,...",
+                    help="rates to try (default: the source's rate x 1, 0.8, ..., 0.1)")
+    th.add_argument("--outages", type=number_list, metavar="S,...",
+                    help="interruptions to try, s (default: 0.5,1,2,3,5,8)")
+    add_seconds(th, "--settle", 5.0, "seconds at a new rate, or after an interruption's "
+                                     "recovery, before the probe counts")
+    add_seconds(th, "--step", 20.0, "seconds the probe is watched per step")
+    th.add_argument("--quota", type=float, default=0.95, metavar="SHARE",
+                    help="share of the probe's checks that must pass (default: 0.95)")
+    th.add_argument("--improvement", type=float, default=0.1, metavar="SHARE",
+                    help="a higher rate improves the score by more than this share of the "
+                         "best, or it does not count (default: 0.1)")
+    add_start_timeout(th)
+    th.add_argument("--dry-run", action="store_true", help="do not write MODEL")
+    th.add_argument("--json", action="store_true",
+                    help="print {connection, source_hz, probe, steps: [{rate_hz, outage_s, "
+                         "passed, checks, value_mean, delivered_hz, correct}], freq_min, "
+                         "freq_opt, tolerance, tolerance_is_lower_bound, "
+                         "freq_min_is_upper_bound, written}")
+
+
+def run_profile(args) -> int:
+    require_model_file(args.model)
+    nodes = [n.strip() for n in args.nodes.split(",") if n.strip()] or None
+    # Imported here: check, plan and simulate must work without ROS installed.
+    from . import profile_ros
+    return profile_ros.run(args.model, nodes, args.warmup, args.window, args.lease,
+                           args.start_timeout, args.dry_run, args.json)
+
+
+def run_thresholds(args) -> int:
+    require_model_file(args.model)
+    if args.probe and not args.condition:
+        raise ModelError("--probe", "", "needs --condition EXPR (true when correct)")
+    if args.probe_script and (args.condition or args.value):
+        raise ModelError("--condition/--value", "", "go with --probe TOPIC, not --probe-script")
+    if not 0 < args.quota <= 1:
+        raise ModelError("--quota", "", f"expected a share in (0, 1], got {args.quota:g}")
+    if not 0 <= args.improvement < 1:
+        raise ModelError("--improvement", "", f"expected a share in [0, 1), got "
+                                              f"{args.improvement:g}")
+    from . import thresholds_ros
+    return thresholds_ros.run(args)

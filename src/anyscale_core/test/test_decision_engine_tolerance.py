@@ -1,0 +1,54 @@
+"""The decision engine and the connections' tolerance: a slow connection moves its node back
+before the tolerance runs out, a moved node gets a start-up grace, and a silent topic's rate
+decays with its silence."""
+import math
+
+import pytest
+
+from anyscale_core.allocators import make_allocator
+from anyscale_core.decision_engine import DecisionEngine, DecisionParams, effective_rate
+
+from decision_reports import remote, reports
+
+
+def test_slow_connection_moves_its_node_back_before_the_tolerance_runs_out(engine):
+    engine.tick(reports(1.0), 1.0)
+    assert remote(engine) == ["amcl"]
+    # /amcl_pose (AMCL -> EKF, freq_min 2 Hz, tolerance 2 s) drops to 1 Hz at t = 2.
+    engine.tick(reports(2.0, rates={"/amcl_pose": 1.0}, bandwidth=3.0), 2.0)
+    assert remote(engine) == ["amcl"]                                  # 0 s of 2 s spent
+    result = engine.tick(reports(3.0, rates={"/amcl_pose": 1.0}, bandwidth=3.0), 3.0)
+    assert result.violating == ["amcl"]                               # half the tolerance
+    assert [(e.kind, e.node) for e in result.events] == [("migrate_back", "amcl")]
+
+
+def test_moved_node_gets_a_start_up_grace(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"),
+                       DecisionParams(bandwidth_hold_s=0.0, startup_grace_s=5.0))
+    e.adopt_or_start(reports(0.0), 0.0)
+    e.tick(reports(6.0), 6.0)                                          # AMCL moves out
+    silent = {"/amcl_pose": 0.0}
+    for t in (7.0, 9.0, 10.9):
+        assert "amcl" in remote(e) and e.tick(reports(t, rates=silent), t).violating == []
+    # After the grace the tolerance starts: half of its 2 s are spent at t = 13.
+    assert e.tick(reports(12.0, rates=silent), 12.0).violating == []
+    assert e.tick(reports(13.0, rates=silent), 13.0).violating == ["amcl"]
+
+
+@pytest.mark.parametrize("rate,age,expected", [(10.0, 0.05, 10.0), (10.0, 2.0, 0.5),
+                                               (5.0, math.inf, 0.0), (5.0, 0.0, 5.0)])
+def test_effective_rate_follows_silence(rate, age, expected):
+    assert effective_rate(rate, age) == expected
+
+
+def test_the_return_reason_names_the_slow_connection(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"),
+                       DecisionParams(bandwidth_hold_s=0.0, startup_grace_s=0.0))
+    e.adopt_or_start(reports(0.0), 0.0)
+    e.tick(reports(1.0), 1.0)
+    e.tick(reports(2.0), 2.0)
+    assert "amcl" in remote(e)
+    slow = {"/scan": 1.0}
+    reasons = [ev.reason for t in (3.0, 4.0, 5.0) for ev in e.tick(reports(t, rates=slow), t).events
+               if ev.node == "amcl"]
+    assert reasons and "/scan" in reasons[0] and "1.0 Hz on laptop" in reasons[0], reasons

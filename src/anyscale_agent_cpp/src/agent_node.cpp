@@ -17,6 +17,11 @@ namespace anyscale_agent
 {
 namespace
 {
+// A watched topic silent this long gets a new subscription: every topic of a model connection
+// runs at 1 Hz or more (freq_min), so 3 s of nothing while its publisher runs is a dead
+// connection; where the publisher is gone, the renewal costs a call to the master.
+constexpr double kRenewCountersSilentS = 3.0;
+
 template <typename T>
 T param(const ros::NodeHandle& pnh, const std::string& name, const T& fallback)
 {
@@ -116,8 +121,11 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   link.bulk_bytes = std::max(0, param(pnh_, "link_bulk_bytes", link.bulk_bytes));
   link.bulk_period_s = positive(pnh_, "link_bulk_period_s", link.bulk_period_s);
   link.icmp = param(pnh_, "link_bandwidth_by_icmp", link.icmp);
-  link_ = std::make_unique<LinkMonitor>(nh_, scale_, is_master_, param<std::string>(pnh_, "master_scale", ""), link,
-                                        [this] { topics_->resubscribeAll(); });
+  link_ = std::make_unique<LinkMonitor>(
+      nh_, scale_, is_master_, param<std::string>(pnh_, "master_scale", ""), link,
+      [this](double now, const std::function<bool()>& may_call_master) {
+        topics_->renewSilent(now, kRenewCountersSilentS, may_call_master);
+      });
 
   status_pub_ = nh_.advertise<anyscale_msgs::ScaleStatus>("/anyscale/status", 10);
   const std::string ns = "/anyscale/" + scale_ + "/";

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include "anyscale_agent_cpp/tcp_reachability.h"
 
@@ -12,9 +13,9 @@ namespace anyscale_agent
 {
 
 LinkMonitor::LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, std::string master_scale,
-                         LinkOptions options, std::function<void()> on_resubscribed)
+                         LinkOptions options, RenewAlso renew_also)
   : nh_(nh)
-  , on_resubscribed_(std::move(on_resubscribed))
+  , renew_also_(std::move(renew_also))
   , scale_(std::move(scale))
   , is_master_(is_master)
   , master_scale_(std::move(master_scale))
@@ -99,28 +100,34 @@ void LinkMonitor::resubscribeIfSilent(double t)
 void LinkMonitor::renewWhenAsked()
 {
   std::unique_lock<std::mutex> lock(renew_mutex_);
-  while (true)
+  while (!renew_stopping_)
   {
-    wake_renewal_.wait(lock, [this] { return renewal_wanted_ || renew_stopping_; });
+    wake_renewal_.wait_for(lock, std::chrono::seconds(1), [this] { return renewal_wanted_ || renew_stopping_; });
     if (renew_stopping_)
       return;
+    const bool link_wanted = renewal_wanted_;
     lock.unlock();
     // Away from the master's machine, a subscribe is a call to the master over the link, which
     // roscpp makes with no timeout while holding its subscription lock (so its XML-RPC server,
     // which other nodes ask for connections, waits too). Started during an outage or in a
     // flicker of the link, one such call held a laptop agent for 220 s after the link was back
     // (office floor, seed 4: no probe sent, the laptop out of reach on a 27 Mbit/s link). So it
-    // is made only when a connection to the master opens now; until then the timer asks again
-    // at its next probe.
-    const bool reachable =
-        is_master_ || tcpConnects(ros::master::getHost(), int(ros::master::getPort()), kMasterReachableWithinS);
-    if (reachable)
+    // is made only when a connection to the master opens now (asked once per round, and only
+    // when there is something to renew); until then the timer asks again at its next probe.
+    std::optional<bool> reachable;
+    const auto may_call_master = [&] {
+      if (!reachable)
+        reachable = is_master_ || tcpConnects(ros::master::getHost(), int(ros::master::getPort()),
+                                              kMasterReachableWithinS);
+      return *reachable;
+    };
+    if (link_wanted && may_call_master())
     {
       subscribe();
       resubscribed_at_ = now();
-      if (on_resubscribed_)
-        on_resubscribed_();
     }
+    if (renew_also_)
+      renew_also_(now(), may_call_master);
     lock.lock();
     renewal_wanted_ = false;
   }

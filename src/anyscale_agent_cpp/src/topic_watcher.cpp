@@ -3,12 +3,23 @@
 
 #include <ros/names.h>
 
+#include <chrono>
 #include <limits>
 
 #include "anyscale_agent_cpp/request_check.h"
 
 namespace anyscale_agent
 {
+
+namespace
+{
+
+double steadyNow()
+{
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+}  // namespace
 
 void InlineCallbackQueue::addCallback(const ros::CallbackInterfacePtr& callback, uint64_t)
 {
@@ -74,47 +85,70 @@ void TopicWatcher::subscribe(const std::string& topic, const std::shared_ptr<Cou
         std::lock_guard<std::mutex> lock(counter->mutex);
         // Receipt time is stamped by the transport thread when the message arrives.
         counter->window.add(event.getReceiptTime().toSec(), msg->size());
+        counter->last_seen = steadyNow();
         if (counter->datatype.empty())
           counter->datatype = msg->getDataType();
       };
+  {
+    std::lock_guard<std::mutex> lock(c->mutex);
+    c->subscribed_at = steadyNow();
+  }
   c->sub = nh_.subscribe<topic_tools::ShapeShifter>(topic, uint32_t(queue_size_), cb, ros::VoidConstPtr(),
                                                       ros::TransportHints().tcpNoDelay());
 }
 
 void TopicWatcher::update(const std::set<std::string>& local_topics)
 {
-  std::lock_guard<std::mutex> lock(mutex_);
-  local_topics_ = local_topics;
-  std::set<std::string> wanted;
-  for (const auto& t : watched_)
-    if (watch_all_ || local_topics.count(t))
-      wanted.insert(t);
-  for (auto it = counters_.begin(); it != counters_.end();)
+  std::lock_guard<std::mutex> subscribing(subscribing_);
+  std::map<std::string, std::shared_ptr<Counter>> dropped, added;
   {
-    if (!wanted.count(it->first))
+    std::lock_guard<std::mutex> lock(mutex_);
+    local_topics_ = local_topics;
+    std::set<std::string> wanted;
+    for (const auto& t : watched_)
+      if (watch_all_ || local_topics.count(t))
+        wanted.insert(t);
+    for (auto it = counters_.begin(); it != counters_.end();)
     {
-      it->second->sub.shutdown();
-      it = counters_.erase(it);
+      if (!wanted.count(it->first))
+      {
+        dropped.insert(*it);
+        it = counters_.erase(it);
+      }
+      else
+      {
+        ++it;
+      }
     }
-    else
-    {
-      ++it;
-    }
+    for (const auto& t : wanted)
+      if (!counters_.count(t))
+        added[t] = counters_[t] = std::make_shared<Counter>(window_s_);
   }
-  for (const auto& t : wanted)
-    if (!counters_.count(t))
-    {
-      auto c = std::make_shared<Counter>(window_s_);
-      subscribe(t, c);
-      counters_[t] = c;
-    }
+  for (auto& [topic, c] : dropped)
+    c->sub.shutdown();
+  for (auto& [topic, c] : added)
+    subscribe(topic, c);
 }
 
-void TopicWatcher::resubscribeAll()
+void TopicWatcher::renewSilent(double now, double silent_s, const std::function<bool()>& may_call_master)
 {
-  std::lock_guard<std::mutex> lock(mutex_);
-  for (const auto& [topic, c] : counters_)
+  std::lock_guard<std::mutex> subscribing(subscribing_);
+  std::map<std::string, std::shared_ptr<Counter>> silent;
   {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& [topic, c] : counters_)
+    {
+      std::lock_guard<std::mutex> counter_lock(c->mutex);
+      if (now - std::max(c->last_seen, c->subscribed_at) >= silent_s)
+        silent.emplace(topic, c);
+    }
+  }
+  if (silent.empty() || !may_call_master())
+    return;
+  for (auto& [topic, c] : silent)
+  {
+    // Released first: roscpp keeps one subscription per topic, and a new subscriber beside the
+    // old one would only share its dead connection.
     c->sub.shutdown();
     subscribe(topic, c);
   }

@@ -36,10 +36,12 @@ struct LinkOptions
 class LinkMonitor
 {
 public:
-  // `on_resubscribed` runs (in the renewal thread) each time a silent link subscription was
-  // renewed: the agent's other subscriptions across the link may be held up the same way.
+  // `renew_also(now, may_call_master)` runs in the renewal thread about once a second (steady
+  // clock `now`): the agent's other subscriptions across the link can die the same way, and are
+  // renewed under the same rule (may_call_master: see renewWhenAsked).
+  using RenewAlso = std::function<void(double now, const std::function<bool()>& may_call_master)>;
   LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, std::string master_scale, LinkOptions options,
-              std::function<void()> on_resubscribed = {});
+              RenewAlso renew_also = {});
   ~LinkMonitor();
   anyscale_msgs::LinkStatistics stats();
   // "ICMP echo to ADDRESS" or "ROS probes" (and why): how the bandwidth is measured.
@@ -59,7 +61,7 @@ private:
   static constexpr double kResubscribeAfterS = 5.0;
   static constexpr double kMasterReachableWithinS = 1.0;
   ros::NodeHandle nh_;
-  std::function<void()> on_resubscribed_;
+  RenewAlso renew_also_;
   std::string scale_;
   bool is_master_;
   std::string master_scale_;

@@ -14,6 +14,17 @@ from .two_scale_testbed import (ScaleEnd, TwoScaleLayout, TwoScaleTestbed, repor
 MASTER_PORT = 11311
 
 
+def agent_binary() -> Optional[str]:
+    """The built anyscale_agent of the sourced workspace, or None (not built, not sourced)."""
+    try:
+        from catkin.find_in_workspaces import find_in_workspaces
+    except ImportError:
+        return None
+    found = find_in_workspaces(["libexec"], project="anyscale_agent_cpp", path="anyscale_agent",
+                               first_matching_workspace_only=True)
+    return found[0] if found else None
+
+
 def ros_env(base: Dict[str, str], master_address: str, own_address: Optional[str],
             port: int, log_dir: str) -> Dict[str, str]:
     """The environment of a scale's processes: the robot's master, this scale's own address

@@ -8,9 +8,14 @@ this happened to the robot agent's probe subscription after an outage with flick
 laptop counted as out of reach on a 27 Mbit/s link for the rest of the run. The agents renew
 such a subscription from scratch (a new one: the old released first, see LinkMonitor).
 
-The test kills every TCP connection between the scales (`ss -K`) while the carrier is down, so
-that roscpp's retry comes during the outage, then brings the link back: the laptop must report
-its link up again within RECOVER_S."""
+The same befell the laptop agent's rate counters: a counter reading 0 Hz on a dead connection
+sent AMCL and AR home 9 s after each move out (the same run). They are renewed when silent.
+
+The test kills TCP connections between the scales (`ss -K`) while the carrier is down, so that
+roscpp's retry comes during the outage, then brings the link back: within RECOVER_S the laptop
+must report its link up again, and count a topic published on the robot again. Twice: every
+connection, and only the counted topic's over a shorter outage (the probes live on; before the
+counters renewed themselves, only a probe renewal renewed them too)."""
 import os
 import subprocess
 import sys
@@ -20,47 +25,62 @@ import pytest
 
 from anyscale_core.polling import wait_for
 
-from anyscale_testbed.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
+from anyscale_testbed.testbed_session import (NamespaceBed, TestbedSession, agent_binary,
+                                              layout_with_cpu)
 from anyscale_testbed.two_scale_testbed import namespace_exec, run
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 MODEL = os.path.join(HERE, "..", "..", "..", "anyscale_agent_cpp", "test", "config",
                      "test_model.yaml")
 OUTAGE_S = 3.0
+SHORT_OUTAGE_S = 1.5            # the probes' 5 s of silence before a renewal not reached
 # Silence before a renewal (5 s) + the probe timer, the link timeout and a status period.
 RECOVER_S = 12.0
 
-# Prints "<wall time> <up>" for each of the laptop agent's statuses.
+COUNTED = "/chatter"             # published on the robot, counted by the laptop's agent
+
+# Prints "<wall time> <link up> <COUNTED's rate>" for each of the laptop agent's statuses.
 WATCH = """
 import sys, time, rospy
 from anyscale_msgs.msg import ScaleStatus
 rospy.init_node("link_watch", anonymous=True)
 out = open(sys.argv[1], "a", buffering=1)
-rospy.Subscriber("/anyscale/status", ScaleStatus, lambda m: m.scale == "laptop" and
-                 out.write("%.3f %d\\n" % (time.time(), m.link.up)))
+def seen(m):
+    if m.scale == "laptop":
+        rate = max([t.rate_hz for t in m.topics if t.topic == sys.argv[2]] or [0.0])
+        out.write("%.3f %d %.2f\\n" % (time.time(), m.link.up, rate))
+rospy.Subscriber("/anyscale/status", ScaleStatus, seen)
 rospy.spin()
 """
 
 
 def laptop_link(path):
-    """[(wall time, link up)] from the watcher's file."""
+    """[(wall time, link up, COUNTED's rate in Hz)] from the watcher's file."""
     try:
         with open(path) as f:
-            return [(float(t), up == "1") for t, up in (line.split() for line in f if line.strip())]
+            return [(float(t), up == "1", float(rate))
+                    for t, up, rate in (line.split() for line in f if line.strip())]
     except FileNotFoundError:
         return []
 
 
-def kill_connections(bed, scale, peer_address):
-    """Every TCP socket of the scale's namespace to the peer destroyed, as an outage can end
-    them; returns how many (`ss -K` prints each one it closed)."""
-    done = run(namespace_exec(bed.end(scale), ["ss", "-K", "-t", "-H", "dst", peer_address]),
-               check=False)
+def kill_connections(bed, scale, peer_address, local_port=None):
+    """The TCP sockets of the scale's namespace to the peer (from `local_port` only, if given)
+    destroyed, as an outage can end them; returns how many (`ss -K` prints each it closed)."""
+    where = ["dst", peer_address] + (["sport", "=", f":{local_port}"] if local_port else [])
+    done = run(namespace_exec(bed.end(scale), ["ss", "-K", "-t", "-H"] + where), check=False)
     return len([line for line in done.stdout.splitlines() if line.strip()])
 
 
-@pytest.fixture(scope="module")
-def outage(tmp_path_factory):
+def listening_ports(bed, scale, program):
+    """The TCP ports that `program` (its process name) listens on in the scale's namespace."""
+    done = run(namespace_exec(bed.end(scale), ["ss", "-t", "-l", "-n", "-p", "-H"]), check=False)
+    return [int(line.split()[3].rsplit(":", 1)[1]) for line in done.stdout.splitlines()
+            if f'"{program}"' in line]
+
+
+@pytest.fixture(scope="module", params=["every connection", "the counted topic's"])
+def outage(request, tmp_path_factory):
     run_dir = str(tmp_path_factory.mktemp("renewal"))
     statuses = os.path.join(run_dir, "laptop_link.txt")
     with NamespaceBed(layout_with_cpu(0.0, 0.0)) as bed:
@@ -69,28 +89,59 @@ def outage(tmp_path_factory):
                   "sigint_timeout_s:=2.0"]
         session.roslaunch("robot", "robot", ["anyscale_agent_cpp", "agent.launch", "scale:=robot",
                                              "is_master:=true"] + common, wait_for_master=False)
-        session.roslaunch("laptop", "laptop", ["anyscale_agent_cpp", "agent.launch",
-                                               "scale:=laptop"] + common)
+        # As agent.launch starts it, and counting COUNTED though no node of the laptop uses it.
+        bed.start("laptop", [agent_binary(), "__name:=anyscale_agent_laptop", "_scale:=laptop",
+                             "_master_scale:=robot", f"_model:={MODEL}", "_sample_rate_hz:=5.0",
+                             "_sigint_timeout_s:=2.0", "_watch_all:=true"], session.env("laptop"),
+                  os.path.join(run_dir, "logs", "laptop.log"))
         # On the laptop, so that the outage leaves the watcher's own connection alone.
-        bed.start("laptop", [sys.executable, "-c", WATCH, statuses], session.env("laptop"),
-                  os.path.join(run_dir, "logs", "watch.log"), cpu_quota=False)
-        up_first = wait_for(lambda: any(up for _, up in laptop_link(statuses)), 60.0, 0.2)
-        assert up_first, "the laptop's link never came up"
+        bed.start("laptop", [sys.executable, "-c", WATCH, statuses, COUNTED],
+                  session.env("laptop"), os.path.join(run_dir, "logs", "watch.log"),
+                  cpu_quota=False)
+        assert wait_for(lambda: any(up for _, up, _ in laptop_link(statuses)), 60.0, 0.2), \
+            "the laptop's link never came up"
+        bed.start("robot", ["rostopic", "pub", "-r", "10", COUNTED, "std_msgs/String", "hi"],
+                  session.env("robot"), os.path.join(run_dir, "logs", "talker.log"))
+        watch = subprocess.run(namespace_exec(bed.end("laptop"), [
+            "rosservice", "call", "--wait", "/anyscale/laptop/set_watched_topics",
+            "{topics: [%s]}" % COUNTED]), env=session.env("laptop"), capture_output=True,
+            text=True, timeout=30)
+        assert "success: True" in watch.stdout, watch.stdout + watch.stderr
+        assert wait_for(lambda: any(rate > 0 for _, _, rate in laptop_link(statuses)), 30.0, 0.2), \
+            "the laptop never counted " + COUNTED
+        talker_ports = listening_ports(bed, "robot", "rostopic")
         bed.set_link(False)
-        killed = (kill_connections(bed, "robot", bed.address("laptop"))
-                  + kill_connections(bed, "laptop", bed.address("robot")))
-        time.sleep(OUTAGE_S)
+        if request.param == "every connection":
+            killed = (kill_connections(bed, "robot", bed.address("laptop"))
+                      + kill_connections(bed, "laptop", bed.address("robot")))
+            time.sleep(OUTAGE_S)
+        else:
+            killed = sum(kill_connections(bed, "robot", bed.address("laptop"), port)
+                         for port in talker_ports)
+            time.sleep(SHORT_OUTAGE_S)
         bed.set_link(True)
         back = time.time()
-        wait_for(lambda: any(up for t, up in laptop_link(statuses) if t > back), RECOVER_S + 8.0,
-                 0.2)
+        wait_for(lambda: any(up and rate > 0 for t, up, rate in laptop_link(statuses)
+                             if t > back + 2.5), RECOVER_S + 8.0, 0.2)
     return {"back": back, "killed": killed, "statuses": laptop_link(statuses)}
 
 
 def test_the_laptop_reports_its_link_up_soon_after_the_link_returns(outage):
     if outage["killed"] == 0:
         pytest.skip("`ss -K` closed nothing: the kernel lacks CONFIG_INET_DIAG_DESTROY")
-    up = [t - outage["back"] for t, ok in outage["statuses"] if ok and t > outage["back"]]
+    up = [t - outage["back"] for t, ok, _ in outage["statuses"] if ok and t > outage["back"]]
     print(f"link up again {up[0]:.2f} s after it returned" if up else "link never up again")
     assert up, "the laptop never reported its link up again after the outage"
     assert up[0] <= RECOVER_S, f"link up again only {up[0]:.1f} s after it returned"
+
+
+def test_the_laptop_counts_a_topic_from_the_robot_again_soon_after_the_link_returns(outage):
+    if outage["killed"] == 0:
+        pytest.skip("`ss -K` closed nothing: the kernel lacks CONFIG_INET_DIAG_DESTROY")
+    # A rate from after the return: the counter's 2 s window must have seen new messages.
+    counted = [t - outage["back"] for t, _, rate in outage["statuses"]
+               if rate > 0 and t > outage["back"] + 2.5]
+    print(f"{COUNTED} counted again {counted[0]:.2f} s after the link returned" if counted
+          else f"{COUNTED} never counted again")
+    assert counted, f"the laptop never counted {COUNTED} again after the outage"
+    assert counted[0] <= RECOVER_S, f"{COUNTED} counted again only {counted[0]:.1f} s after"

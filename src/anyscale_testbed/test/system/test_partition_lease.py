@@ -9,6 +9,7 @@ import time
 import psutil
 import pytest
 
+from anyscale_testbed.testbed_session import agent_binary
 from anyscale_testbed.two_scale_testbed import (TwoScaleTestbed, missing_capabilities,
                                                 namespace_exec, process_layout)
 
@@ -21,21 +22,11 @@ MODEL = os.path.join(HERE, "..", "..", "..", "anyscale_agent_cpp", "test", "conf
                      "test_model.yaml")
 
 
-def _agent_binary():
-    try:
-        from catkin.find_in_workspaces import find_in_workspaces
-    except ImportError:
-        return None
-    found = find_in_workspaces(["libexec"], project="anyscale_agent_cpp", path="anyscale_agent",
-                               first_matching_workspace_only=True)
-    return found[0] if found else None
-
-
 def _why_skip():
     missing = missing_capabilities(need_cgroups=False)
     if missing:
         return "needs " + "; ".join(missing)
-    if not _agent_binary():
+    if not agent_binary():
         return "anyscale_agent is not built or the workspace is not sourced"
     return None
 
@@ -72,7 +63,7 @@ def two_namespaces():
                              env=ros_env(LAYOUT.robot)).returncode != 0:
             assert time.monotonic() < deadline, "roscore did not come up in the master namespace"
             time.sleep(0.3)
-        agent = bed.start("laptop", [_agent_binary(), "__name:=anyscale_agent_laptop",
+        agent = bed.start("laptop", [agent_binary(), "__name:=anyscale_agent_laptop",
                                      "_scale:=laptop", "_master_scale:=robot", "_model:=" + MODEL,
                                      "_sigint_timeout_s:=2.0"], env=ros_env(LAYOUT.laptop))
         yield bed, agent

@@ -121,6 +121,8 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   link.bulk_bytes = std::max(0, param(pnh_, "link_bulk_bytes", link.bulk_bytes));
   link.bulk_period_s = positive(pnh_, "link_bulk_period_s", link.bulk_period_s);
   link.icmp = param(pnh_, "link_bandwidth_by_icmp", link.icmp);
+  if (!is_master_)
+    master_calls_ = std::make_unique<MasterCallWatchdog>(ros::master::getHost(), int(ros::master::getPort()));
   link_ = std::make_unique<LinkMonitor>(
       nh_, scale_, is_master_, param<std::string>(pnh_, "master_scale", ""), link,
       [this](double now, const std::function<bool()>& may_call_master) {

@@ -21,6 +21,7 @@
 #include "anyscale_agent_cpp/graph_monitor.h"
 #include "anyscale_agent_cpp/lease_table.h"
 #include "anyscale_agent_cpp/link_monitor.h"
+#include "anyscale_agent_cpp/master_call_watchdog.h"
 #include "anyscale_agent_cpp/node_model.h"
 #include "anyscale_agent_cpp/supervisor.h"
 #include "anyscale_agent_cpp/system_sampler.h"
@@ -119,6 +120,7 @@ private:
   anyscale_msgs::ScaleStatus last_status_;
   std::unique_ptr<TopicWatcher> topics_;
   std::unique_ptr<LinkMonitor> link_;
+  std::unique_ptr<MasterCallWatchdog> master_calls_;  // away from the master's machine only
   GraphMonitor graph_;
 
   // Supervision runs on its own queue and thread, and master queries on another, so neither

@@ -1,5 +1,6 @@
 """process_group.py (no roscore): a process group ended by SIGINT, or by SIGKILL when it ignores
-SIGINT, reaped either way; a log's last lines."""
+SIGINT, reaped either way (also when pytest runs in the background, where SIGINT starts ignored);
+a log's last lines."""
 import subprocess
 import time
 

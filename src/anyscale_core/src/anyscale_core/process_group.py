@@ -31,6 +31,13 @@ def log_tail(path: str, lines: int = 3) -> str:
     return " | ".join(tail)
 
 
+def _sigint_default():
+    """In the child: SIGINT back to its default. A command run in the background (`&`, nohup)
+    starts with SIGINT ignored, its children inherit that, and a stop's SIGINT then did nothing:
+    each process was killed after the grace instead of shutting down."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 class OwnProcess:
     """A process a command starts, in its own process group, its output in a log file."""
 
@@ -40,7 +47,8 @@ class OwnProcess:
         self.log_path = os.path.join(log_dir, f"{name}.log")
         with open(self.log_path, "ab") as log:
             self.proc = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
-                                         stdin=subprocess.DEVNULL, start_new_session=True)
+                                         stdin=subprocess.DEVNULL, start_new_session=True,
+                                         preexec_fn=_sigint_default)
 
     def alive(self) -> bool:
         return self.proc.poll() is None

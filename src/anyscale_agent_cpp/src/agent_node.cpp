@@ -73,6 +73,7 @@ uint8_t toMsgState(ProcState s)
     case ProcState::Replaced: return anyscale_msgs::NodeProcess::REPLACED;
     case ProcState::LeaseExpired: return anyscale_msgs::NodeProcess::LEASE_EXPIRED;
     case ProcState::Standby: return anyscale_msgs::NodeProcess::STANDBY;
+    case ProcState::Paused: return anyscale_msgs::NodeProcess::PAUSED;
   }
   return anyscale_msgs::NodeProcess::EXITED;
 }

@@ -94,6 +94,26 @@ void AgentNode::startNode(const anyscale_msgs::StartNode::Request& req, anyscale
   {
     const std::string exe = resolveExecutable(decl->package, decl->type, catkinPrefixes(std::getenv("CMAKE_PREFIX_PATH")), locate);
     argv = buildArgv(*decl, exe, locate, instanceSuffix(scale_, is_master_));
+    // A paused instance (a return to the master scale of a node declared launch.pause_at_home)
+    // is resumed: running in milliseconds, with its connections and state, where a start
+    // would spend a second or more of the starved robot's CPU before its first output. It
+    // resumes its own state (the node's side of pause_at_home), so no overrides are set.
+    if (const auto paused = supervisor_.info(name); paused && paused->state == ProcState::Paused)
+    {
+      std::string error;
+      if (const int pid = supervisor_.resume(name, &error); pid > 0)
+      {
+        setStartPriority(name, pid, decl->nice);
+        std::lock_guard<std::mutex> lock(leases_mutex_);
+        leases_.grant(name, steadyNow(), req.lease_s);
+        res.success = true;
+        res.pid = pid;
+        res.message = "resumed the paused instance of " + name + " (pid " + std::to_string(pid) + ")";
+        ROS_INFO("%s", res.message.c_str());
+        return;
+      }
+      ROS_WARN("%s; starting it", error.c_str());  // it ended while paused
+    }
     // A node being stopped here cannot be taken over (a rospy node that got SIGINT is shutting
     // down): a link loss right after a planned move brings the node back to the scale whose
     // old instance is being stopped. The migration stop ends it within its SIGINT grace, so
@@ -166,6 +186,11 @@ void AgentNode::stopNode(const anyscale_msgs::StopNode::Request& req, anyscale_m
     return;
   }
   const std::string name = qualified(req.node);
+  if (req.pause)
+  {
+    pauseNode(name, res);
+    return;
+  }
   {
     std::lock_guard<std::mutex> lock(leases_mutex_);
     leases_.remove(name);
@@ -222,6 +247,26 @@ void AgentNode::stopNode(const anyscale_msgs::StopNode::Request& req, anyscale_m
              res.exit_signal == SIGKILL ? ": killed after the SIGINT grace" :
                                           "");
   return;
+}
+
+void AgentNode::pauseNode(const std::string& name, anyscale_msgs::StopNode::Response& res)
+{
+  // Elsewhere a node lives on its lease, and a paused instance behind a partition would hold
+  // its memory, unseen, for as long as the partition lasts.
+  if (!is_master_)
+  {
+    res.message = "refused: pause " + quoted(name) + ": only the master scale pauses nodes";
+    return;
+  }
+  std::string error;
+  if (!supervisor_.pause(name, &error))
+  {
+    res.message = "refused: pause: " + error;
+    return;
+  }
+  res.success = true;
+  res.message = "paused " + name + " (SIGSTOP): the next start here resumes it";
+  ROS_INFO("%s", res.message.c_str());
 }
 
 void AgentNode::renewLeases(const anyscale_msgs::RenewLeases::Request& req, anyscale_msgs::RenewLeases::Response& res)

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstring>
 #include <thread>
 
 namespace anyscale_agent
@@ -38,6 +39,7 @@ const char* toString(ProcState s)
     case ProcState::Replaced: return "replaced";
     case ProcState::LeaseExpired: return "lease expired";
     case ProcState::Standby: return "standby";
+    case ProcState::Paused: return "paused";
   }
   return "?";
 }
@@ -116,6 +118,44 @@ bool Supervisor::stop(const std::string& name, ProcState final_state, double kil
   return true;
 }
 
+bool Supervisor::pause(const std::string& name, std::string* error)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = records_.find(name);
+  if (it == records_.end() || !isAlive(it->second) || it->second.info.state != ProcState::Running)
+  {
+    *error = "'" + name + "' is not running here" +
+             (it != records_.end() ? std::string(" (it is ") + toString(it->second.info.state) + ")" : "");
+    return false;
+  }
+  if (::kill(-it->second.group.pgid, SIGSTOP) != 0)
+  {
+    *error = "cannot pause '" + name + "': " + std::strerror(errno);
+    return false;
+  }
+  it->second.info.state = ProcState::Paused;
+  return true;
+}
+
+int Supervisor::resume(const std::string& name, std::string* error)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  reapLocked();  // a paused node that was killed meanwhile must not count as resumed
+  auto it = records_.find(name);
+  if (it == records_.end() || !isAlive(it->second) || it->second.info.state != ProcState::Paused)
+  {
+    *error = "'" + name + "' is not paused here";
+    return 0;
+  }
+  if (::kill(-it->second.group.pgid, SIGCONT) != 0)
+  {
+    *error = "cannot resume '" + name + "': " + std::strerror(errno);
+    return 0;
+  }
+  it->second.info.state = ProcState::Running;
+  return it->second.info.pid;
+}
+
 bool Supervisor::killNow(const std::string& name)
 {
   std::lock_guard<std::mutex> lock(mutex_);
@@ -129,15 +169,19 @@ bool Supervisor::killNow(const std::string& name)
 
 void Supervisor::escalate(Group& g, Clock::time_point now)
 {
+  // SIGCONT after SIGINT and SIGTERM: a paused group (pause()) handles them only once it runs.
+  // SIGKILL needs none.
   if (g.stage == 0)
   {
     ::kill(-g.pgid, SIGINT);
+    ::kill(-g.pgid, SIGCONT);
     g.stage = 1;
     g.deadline = now + seconds(options_.sigint_timeout_s);
   }
   else if (g.stage == 1)
   {
     ::kill(-g.pgid, SIGTERM);
+    ::kill(-g.pgid, SIGCONT);
     g.stage = 2;
     g.deadline = now + seconds(options_.sigterm_timeout_s);
   }
@@ -163,14 +207,15 @@ void Supervisor::reapLocked()
       {
         if (r.info.pid != pid)
           continue;
-        const bool was_standby = r.info.state == ProcState::Standby;
+        // A standby that ended was never a node, and a paused one is not the node's instance
+        // in use (it runs on another scale): nothing for the node-exit handling to do.
+        const bool not_in_use = r.info.state == ProcState::Standby || r.info.state == ProcState::Paused;
         r.info.pid = 0;
         r.info.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
         r.info.exit_signal = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
         r.info.state = r.info.stop_requested ? r.final_state : ProcState::Exited;
         r.activation.reset();
-        // A standby that ended was never a node: nothing for the node-exit handling to do.
-        if (!r.info.stop_requested && !was_standby)
+        if (!r.info.stop_requested && !not_in_use)
           unrequested_exits_.push_back(name);
         // Members that outlive the leader are cleared the same way, continuing its sequence.
         if (groupExists(r.group.pgid))

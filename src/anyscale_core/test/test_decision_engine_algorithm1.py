@@ -13,7 +13,8 @@ def test_good_link_moves_amcl_then_ar_and_renews_their_leases(engine):
     assert [(e.kind, e.node, e.to_scale) for e in first.events] == [("migrate", "amcl", "laptop")]
     start, stop, renew = first.actions          # make before break: start first
     assert start == StartNode("amcl", "laptop", (), 3.0)
-    assert stop == StopNode("amcl", "robot", after_output_on="laptop")
+    # AMCL is declared pause_at_home: its robot instance is paused, not stopped.
+    assert stop == StopNode("amcl", "robot", after_output_on="laptop", pause=True)
     assert renew == RenewLeases("laptop", ("amcl",), 3.0)
     engine.tick(reports(2.0), 2.0)
     assert remote(engine) == ["amcl", "ar_recognition"]

@@ -91,3 +91,15 @@ def test_top_without_a_master_says_so(monkeypatch, capsys):
     assert main(["top", "--once"]) == 1
     err = capsys.readouterr().err
     assert err.startswith("anyscale top: error: no ROS master at http://127.0.0.1:9/")
+
+
+def test_a_paused_instance_is_listed_apart_and_never_hides_the_running_one(testbed):
+    robot = ScaleStatus(scale="robot", is_master=True, cores=2)
+    robot.nodes = [NodeProcess(name="/amcl", state=NodeProcess.PAUSED, rss_bytes=90 * 2**20)]
+    laptop = ScaleStatus(scale="laptop", cores=4)
+    laptop.nodes = [NodeProcess(name="/amcl", state=NodeProcess.RUNNING, cpu_percent=30.0)]
+    # Scales in both orders: the paused row must not replace the running one either way.
+    for statuses in ({"robot": robot, "laptop": laptop}, {"zz_robot": robot, "laptop": laptop}):
+        text = frame(testbed, statuses=statuses)
+        assert row(text, "amcl").split()[2] == "RUNNING"
+        assert "paused (resumed by a return): amcl on" in text and "(90 MB)" in text

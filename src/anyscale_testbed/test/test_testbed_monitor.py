@@ -1,6 +1,7 @@
 """The test-bed monitor's /proc census: a node's live processes of this ROS system only, and a
 warm standby is no instance until it is started."""
 import os
+import signal
 import subprocess
 import sys
 
@@ -53,3 +54,19 @@ def test_a_warm_standby_counts_once_started(tmp_path):
     finally:
         standby.kill()
         standby.wait()
+
+
+def test_a_paused_process_is_no_live_instance_and_is_reported_paused():
+    node = spawn([sys.executable, "-c", "import time; time.sleep(30)", "__name:=census_paused"])
+    names = {"census_paused": "census_paused"}
+    try:
+        assert wait_for(lambda: len(node_processes(names, MASTER)["census_paused"]) == 1)
+        node.send_signal(signal.SIGSTOP)
+        paused = set()
+        assert wait_for(lambda: node_processes(names, MASTER, paused)["census_paused"] == [])
+        assert paused == {"census_paused"}
+        node.send_signal(signal.SIGCONT)
+        assert wait_for(lambda: len(node_processes(names, MASTER)["census_paused"]) == 1)
+    finally:
+        node.kill()
+        node.wait()

@@ -54,6 +54,7 @@ private:
   // What they do (agent_services.cpp).
   void startNode(const anyscale_msgs::StartNode::Request& req, anyscale_msgs::StartNode::Response& res);
   void stopNode(const anyscale_msgs::StopNode::Request& req, anyscale_msgs::StopNode::Response& res);
+  void pauseNode(const std::string& name, anyscale_msgs::StopNode::Response& res);
   void renewLeases(const anyscale_msgs::RenewLeases::Request& req, anyscale_msgs::RenewLeases::Response& res);
   void setWatched(const anyscale_msgs::SetWatchedTopics::Request& req, anyscale_msgs::SetWatchedTopics::Response& res);
 

@@ -28,6 +28,7 @@ enum class ProcState
   Replaced,      // ended because a same-name node registered elsewhere (set by the ROS layer)
   LeaseExpired,  // stopped because its lease ran out
   Standby,       // a warm standby: started, imports done or under way, waiting for activate()
+  Paused,        // a running node stopped with SIGSTOP by pause(), until resume() or a stop
 };
 const char* toString(ProcState s);
 
@@ -96,6 +97,14 @@ public:
   // kill_after_s > 0, SIGKILL follows SIGINT after that long instead of the staged timeouts.
   // False if `name` is not alive.
   bool stop(const std::string& name, ProcState final_state = ProcState::Exited, double kill_after_s = 0.0);
+
+  // Pauses a running node's whole process group (SIGSTOP): it keeps its state, its master
+  // registration and its connections, and uses no CPU. False, with the reason, unless it is
+  // Running (a node still starting has not registered; one stopping is on its way out).
+  bool pause(const std::string& name, std::string* error);
+  // Resumes a paused node (SIGCONT): Running again, in the time the kernel takes to schedule
+  // it. Its pid, or 0 with the reason if `name` is not paused.
+  int resume(const std::string& name, std::string* error);
 
   // SIGKILL now for a node whose stop is under way, when its clean shutdown went far enough
   // (e.g. it left the master). False if `name` is not alive or not being stopped.

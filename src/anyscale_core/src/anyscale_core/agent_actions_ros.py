@@ -99,7 +99,7 @@ class AgentActions:
             # the node is not meant to run on `source` by then: a link loss that brought it
             # back while the new instance was publishing keeps the old instance.
             self.node_workers[node].submit(lambda: assigned() != source and
-                                           self._stop(node, source))
+                                           self._stop(node, source, pause=stop.pause))
             return
         rospy.logwarn("anyscale decision: %s on %s did not publish within %.1f s; it stays on %s",
                       node, target, self.params.handover_timeout_s, source)
@@ -111,17 +111,28 @@ class AgentActions:
                                 math.nan, False)
             self._publish_mapping()
 
-    def _stop(self, node, scale, best_effort=False):
+    def _stop(self, node, scale, best_effort=False, pause=False):
         if not best_effort and not self.link_up.get(scale, True):
             return          # out of reach: its lease ends it there
+        instance = self.model.instance_name(node, scale)
+        if pause:
+            # Before the call: a paused instance does not answer on its API, and the ghost
+            # check must not take it for a dead one while the pause is under way.
+            with self.lock:
+                self.pausing.add(instance)
         try:
             reply = self.agents.stop(scale, node, self.params.engine.lease_s if best_effort
-                                     else None)
+                                     else None, pause=pause)
             if not reply.success:
-                rospy.logwarn("anyscale decision: stop %s on %s: %s", node, scale, reply.message)
+                rospy.logwarn("anyscale decision: %s %s on %s: %s", "pause" if pause else "stop",
+                              node, scale, reply.message)
         except Exception as e:  # noqa: BLE001 - its lease ends it anyway
+            reply = None
             if not best_effort:
                 rospy.logwarn("anyscale decision: stop %s on %s failed: %s", node, scale, e)
+        if pause and (reply is None or not reply.success):
+            with self.lock:
+                self.pausing.discard(instance)
 
     def _start(self, action: StartNode, event, stamp, decided, handover=None) -> int:
         """Starts the node; its pid, or 0 if the start failed (then handled here)."""
@@ -137,6 +148,7 @@ class AgentActions:
             self.starting.discard((node, scale))
             if ok:
                 self.engine.start_acknowledged(node, time.monotonic())
+                self.pausing.discard(self.model.instance_name(node, scale))  # resumed
         if not ok:
             self._start_failed(action, event, message, handover)
             return 0
@@ -231,12 +243,16 @@ class AgentActions:
 
     def _purge_ghosts(self):
         """Removes the master's registrations of this system's node instances that are gone
-        (see ghost_registrations), except where a node runs or is being handed over."""
+        (see ghost_registrations), except where a node runs or is being handed over, and
+        paused instances (launch.pause_at_home), which are registered but do not answer."""
         with self.lock:
             mapping = self.engine.mapping()
             busy = set(self.handing_over)
+            paused = self.pausing | {p.instance for status in self.statuses.values()
+                                     for p in status.nodes if p.state == p.PAUSED}
         names = [self.model.instance_name(n, s) for n, where in mapping.items() if n not in busy
                  for s in self.ch.scale_names if s != where]
+        names = [n for n in names if n not in paused]
         self.registrations.submit(lambda: self._purge(names), key="purge")
 
     def _purge(self, names):

@@ -70,9 +70,9 @@ class AgentClient:
             time.sleep(START_RETRY_DELAY_S)
             return call()
 
-    def stop(self, scale, node, timeout_s=None):
+    def stop(self, scale, node, timeout_s=None, pause=False):
         return self.call(scale, "stop_node", timeout_s or self.stop_timeout_s, node=node,
-                         wait=True, sigint_timeout_s=self.stop_sigint_timeout_s)
+                         wait=True, sigint_timeout_s=self.stop_sigint_timeout_s, pause=pause)
 
     def renew(self, scale, nodes, lease_s):
         return self.call(scale, "renew_leases", min(self.timeout_s, lease_s), nodes=list(nodes),

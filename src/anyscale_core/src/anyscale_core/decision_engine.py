@@ -99,6 +99,9 @@ class StopNode:
     # has its carrier: the link may be saturated rather than gone, and a stop that gets through
     # ends the old instance's stream before its lease does. Sent, but not waited for.
     best_effort: bool = False
+    # Pause the instance instead (launch.pause_at_home, the master scale only): the next start
+    # there resumes it.
+    pause: bool = False
 
 
 @dataclass(frozen=True)
@@ -203,7 +206,9 @@ class DecisionEngine:
             # instance that cannot be reached ends by itself when its lease runs out.
             actions.append(self._start(move.node, move.target))
             if up[move.source]:
-                actions.append(StopNode(name, source, after_output_on=target))
+                pause = move.source == self.ch.master and \
+                    self.ch.model.node(name).launch.pause_at_home
+                actions.append(StopNode(name, source, after_output_on=target, pause=pause))
             elif self._carrier_up(reports):
                 actions.append(StopNode(name, source, best_effort=True))
             events.append(Event("migrate_back" if back else "migrate", name, source, target,

@@ -49,6 +49,11 @@ class LaunchSpec:
     warm_start: bool = False
     # CPU priority the agent runs it at, -20..19 (roslaunch: launch-prefix="nice -n N").
     nice: int = 0
+    # While the node runs on another scale, its instance on the master scale is paused
+    # (SIGSTOP), not stopped, and a return resumes it (SIGCONT) instead of starting it: a
+    # return forced by a link loss then costs no start on the starved robot. The node must
+    # cope with a pause (agent README, "Paused at home"): drop stale input, resume its state.
+    pause_at_home: bool = False
 
 
 @dataclass(frozen=True)

@@ -251,7 +251,8 @@ def _parse_launch(r: _Reader, value: Any, key: str) -> LaunchSpec:
     if value is None:
         r.fail(key, "missing: a node needs launch.package and launch.type to be started")
     d = r.mapping(value, key)
-    r.no_unknown_keys(d, ("package", "type", "args", "remaps", "params", "warm_start", "nice"),
+    r.no_unknown_keys(d, ("package", "type", "args", "remaps", "params", "warm_start", "nice",
+                          "pause_at_home"),
                       key)
     package = r.string(r.require(d, "package", key), f"{key}.package", _PACKAGE_NAME,
                        "a ROS package name")
@@ -266,7 +267,8 @@ def _parse_launch(r: _Reader, value: Any, key: str) -> LaunchSpec:
         r.string(pname, f"{key}.params", _NODE_NAME, "a parameter name")
     nice = r.integer(d.get("nice", 0), f"{key}.nice", -20, 19)
     return LaunchSpec(package, exe, args, remaps, params,
-                      r.boolean(d.get("warm_start", False), f"{key}.warm_start"), nice)
+                      r.boolean(d.get("warm_start", False), f"{key}.warm_start"), nice,
+                      r.boolean(d.get("pause_at_home", False), f"{key}.pause_at_home"))
 
 
 def _parse_handoff(r: _Reader, value: Any, key: str) -> Optional[StateHandoff]:

@@ -9,8 +9,8 @@ from typing import Dict, List, Mapping, Optional, Sequence
 from .model import SystemModel
 
 STATE_NAMES = {0: "STARTING", 1: "RUNNING", 2: "STOPPING", 3: "EXITED", 4: "REPLACED",
-               5: "LEASE_EXPIRED", 6: "STANDBY"}
-STANDBY = 6
+               5: "LEASE_EXPIRED", 6: "STANDBY", 7: "PAUSED"}
+STANDBY, PAUSED = 6, 7
 KIND_NAMES = {0: "START", 1: "MIGRATE", 2: "MIGRATE_BACK", 3: "ADOPT", 4: "FAILED", 5: "RESTART"}
 
 
@@ -56,11 +56,15 @@ def render(statuses: Mapping[str, object], mapping, events: Sequence[object],
     out += ["", f"{'NODE':<20} {'SCALE':<10} {'STATE':<13} {'CPU':>7} {'RSS':>9} {'LEASE':>7}"]
     rows: Dict[str, List[str]] = {}
     standbys: List[str] = []
+    paused: List[str] = []
     for scale in sorted(statuses):
         for p in statuses[scale].nodes:
             name = p.name.lstrip("/")
             if p.state == STANDBY:
                 standbys.append(f"{name} on {scale} ({p.rss_bytes / 2**20:.0f} MB)")
+                continue
+            if p.state == PAUSED:
+                paused.append(f"{name} on {scale} ({p.rss_bytes / 2**20:.0f} MB)")
                 continue
             if p.state not in (0, 1, 2) and name in rows:
                 continue     # an exited instance does not hide the live one
@@ -79,6 +83,8 @@ def render(statuses: Mapping[str, object], mapping, events: Sequence[object],
         out.append(f"{r[0]:<20} {where:<10} {r[2]:<13} {r[3]:>7} {r[4]:>9} {r[5]:>7}")
     if standbys:
         out.append("warm standby: " + ", ".join(standbys))
+    if paused:
+        out.append("paused (resumed by a return): " + ", ".join(paused))
     if model is not None:
         out += ["", f"{'CONNECTION':<40} {'RATE':>8} {'MIN':>6} {'OPT':>6}  STATUS"]
         for c in model.connections:

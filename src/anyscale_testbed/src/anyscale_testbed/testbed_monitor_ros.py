@@ -13,7 +13,7 @@ import os
 import sys
 import threading
 import time
-from typing import Dict, List
+from typing import Dict, List, Optional, Set
 
 import rosgraph
 import rospy
@@ -42,10 +42,13 @@ def say(line: str):
     print(f"[testbed] {line}", flush=True)
 
 
-def node_processes(instances: Dict[str, str], master_uri: str) -> Dict[str, List[str]]:
+def node_processes(instances: Dict[str, str], master_uri: str,
+                   paused: Optional[Set[str]] = None) -> Dict[str, List[str]]:
     """node name -> network namespace (the /proc/PID/ns/net link) of each live process of
     this ROS system (its ROS_MASTER_URI is ours: other systems on the machine do not count).
-    `instances`: each name a node's instance may run under (e.g. amcl, amcl__laptop) -> node."""
+    `instances`: each name a node's instance may run under (e.g. amcl, amcl__laptop) -> node.
+    A stopped process (SIGSTOP: a paused instance, launch.pause_at_home) publishes nothing and
+    is no live one; its instance name goes into `paused`, if given."""
     wanted = {f"__name:={i}".encode(): n for i, n in instances.items()}
     ours = f"ROS_MASTER_URI={master_uri}".encode()
     found: Dict[str, List[str]] = {n: [] for n in set(instances.values())}
@@ -64,6 +67,10 @@ def node_processes(instances: Dict[str, str], master_uri: str) -> Dict[str, List
             if state.split()[0] == b"Z" or comm == STANDBY_EXEC_COMM or \
                     comm.startswith(STANDBY_COMM_PREFIX):
                 continue            # a zombie or a standby publishes nothing
+            if state.split()[0] == b"T":
+                if paused is not None:
+                    paused.update(a.decode()[len("__name:="):] for a in args if a in wanted)
+                continue
             for a in args:
                 if a in wanted:
                     found[wanted[a]].append(os.readlink(f"/proc/{pid}/ns/net"))
@@ -189,19 +196,22 @@ class TestbedMonitor:
 
     # --- sampling -------------------------------------------------------------------------------
     def _sample(self):
+        paused = set()
         instances = node_processes(
             {self.model.instance_name(n, s).lstrip("/"): n
              for n in self.node_names for s in self.model.scale_names},
-            rosgraph.get_master_uri())
+            rosgraph.get_master_uri(), paused)
         try:
             publishers = {t: sorted(nodes) for t, nodes in self.master.getSystemState()[0]
                           if t in self.rec.receipts}
         except Exception:  # noqa: BLE001 - the master is ours; a failed poll is skipped
             publishers = None
+        now = self.now()
         with self.lock:
-            self.rec.processes.append(ProcessSample(self.now(), self.link_up, instances))
-            if publishers is not None:
-                self.rec.master_publishers.append((self.now(), publishers))
+            self.rec.processes.append(ProcessSample(now, self.link_up, instances,
+                                                    sorted("/" + p for p in paused)))
+            if publishers is not None:      # same time as its process sample
+                self.rec.master_publishers.append((now, publishers))
 
     def run(self):
         rate = rospy.Rate(float(rospy.get_param("~sample_rate_hz", 5.0)))

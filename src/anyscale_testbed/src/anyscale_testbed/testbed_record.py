@@ -30,6 +30,7 @@ class ProcessSample:
     t: float
     link_up: bool                           # the modelled WiFi at that moment
     instances: Dict[str, List[str]]         # node -> network namespace of each live process
+    paused: List[str] = field(default_factory=list)  # instance names paused (SIGSTOP), e.g. /amcl
 
 
 @dataclass

@@ -128,6 +128,17 @@ def test_3_link_down_brings_both_back(run, phases):
     assert set(mapping_at(run, up_at - 0.5)[n] for n in MIGRATABLE) == {"robot"}
 
 
+def test_3_the_robot_instance_waits_paused_and_the_loss_resumes_it(run, phases):
+    _, down_at, up_at = phases
+    # AMCL is on the laptop until the loss, its robot instance paused (launch.pause_at_home).
+    before = [s for s in run.processes if down_at - 5.0 <= s.t < down_at]
+    assert before and all("/amcl" in s.paused for s in before), before
+    robot = before[0].instances["ekf"][0]       # the robot's network namespace
+    after = [s for s in run.processes if down_at + 2.0 <= s.t < up_at]
+    assert after and all("/amcl" not in s.paused and robot in s.instances["amcl"]
+                         for s in after), after
+
+
 @pytest.mark.xfail(reason="the promise, not yet kept in every run: 1.08-1.74 s in four runs of "
                           "an earlier session, but 2.16 s in one of three runs on 2026-11-23 "
                           "(the robot's start under its quota; issue #12)", strict=False)
@@ -168,13 +179,23 @@ def test_5_never_two_instances_where_both_could_publish(run, phases):
     assert run.processes, "no process samples recorded"
     # Two only during a planned move's overlap (make before break), bounded in time.
     assert duplicate_instances(run.processes, MIGRATABLE, run.events) == []
-    # The master's view agrees: one registered publisher per output topic at every sample
-    # outside a planned move's overlap.
+    # The master's view agrees: while the link is up, one registered publisher per output
+    # topic outside a planned move's overlap, besides a paused instance (launch.pause_at_home),
+    # which stays registered and publishes nothing. (In a partition the cut-off instance stays
+    # registered until its lease has ended it and the decision node has removed its
+    # registration; the resumed one is registered at once.)
     windows = handover_windows(run.events)
+    samples = {s.t: s for s in run.processes}
+    checked = 0
     for t, publishers in run.master_publishers:
+        if not samples[t].link_up:
+            continue
+        checked += 1
         for topic, node in (("/amcl_pose", "amcl"), ("/ar_markers", "ar_recognition")):
             if not any(a <= t <= b for a, b in windows.get(node, [])):
-                assert len(publishers.get(topic, [])) <= 1, (t, topic, publishers)
+                live = [p for p in publishers.get(topic, []) if p not in samples[t].paused]
+                assert len(live) <= 1, (t, topic, publishers)
+    assert checked > 100
     # After the partition healed: never two outside an overlap, one of each at the end.
     healed = [s for s in run.processes if s.t > up_at]
     assert healed and duplicate_instances(healed, MIGRATABLE, run.events) == []

@@ -1,0 +1,35 @@
+"""Noticing that this process did not run for a while: paused with SIGSTOP (AnyScale's
+launch.pause_at_home keeps a node's instance on the robot paused while another scale runs it),
+or starved as badly. A node's state and the data in its socket buffers are then stale.
+
+No ROS: a thread that checks every period, and the node's callbacks that check too, so that
+whichever runs first after the pause sees it.
+"""
+import threading
+import time
+from typing import Callable
+
+
+class PauseWatch:
+    def __init__(self, gap_s: float, clock: Callable[[], float] = time.monotonic):
+        self.gap_s = gap_s
+        self.clock = clock
+        self.awake = clock()
+        self.lock = threading.Lock()
+
+    def check(self) -> float:
+        """How long the pause that just ended lasted (s), or 0.0 if there was none. Each pause
+        is reported once, to whichever caller checks first."""
+        with self.lock:
+            now = self.clock()
+            gap, self.awake = now - self.awake, now
+        return gap if gap > self.gap_s else 0.0
+
+    def watch(self, period_s: float, on_pause: Callable[[float], None],
+              running: Callable[[], bool]):
+        """Checks every period_s while running(); calls on_pause(gap) for each pause."""
+        while running():
+            time.sleep(period_s)
+            gap = self.check()
+            if gap:
+                on_pause(gap)

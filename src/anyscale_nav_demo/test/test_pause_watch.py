@@ -1,0 +1,41 @@
+"""PauseWatch on a scripted clock: a gap longer than its threshold is one pause, seen once."""
+import threading
+
+from anyscale_nav_demo.pause_watch import PauseWatch
+
+
+class Clock:
+    def __init__(self):
+        self.t = 100.0
+
+    def __call__(self):
+        return self.t
+
+
+def test_regular_checks_see_no_pause_and_a_long_gap_is_reported_once():
+    clock = Clock()
+    watch = PauseWatch(2.0, clock)
+    for _ in range(5):
+        clock.t += 0.1
+        assert watch.check() == 0.0
+    clock.t += 30.0                          # paused for 30 s
+    assert watch.check() == 30.0
+    assert watch.check() == 0.0              # the other caller, right after: already reported
+    clock.t += 1.9                           # a slow stretch below the threshold is no pause
+    assert watch.check() == 0.0
+
+
+def test_the_watch_thread_calls_back_for_a_pause_and_stops_when_asked():
+    clock = Clock()
+    watch = PauseWatch(2.0, clock)
+    seen, stop = [], threading.Event()
+    clock.t += 5.0
+    t = threading.Thread(target=watch.watch, args=(0.01, seen.append, lambda: not stop.is_set()))
+    t.start()
+    for _ in range(200):
+        if seen:
+            break
+        stop.wait(0.01)
+    stop.set()
+    t.join(2.0)
+    assert seen == [5.0] and not t.is_alive()

@@ -93,8 +93,8 @@ class AgentActions:
         if outcome != TIMED_OUT:
             if outcome == PUBLISHED:
                 rospy.loginfo("anyscale decision: %s on %s published %.2f s after its start; "
-                              "stopping the instance on %s", node, target,
-                              time.monotonic() - began, source)
+                              "%s the instance on %s", node, target, time.monotonic() - began,
+                              "pausing" if stop.pause else "stopping", source)
             # On the node's worker, after any start a later decision queued there, and only if
             # the node is not meant to run on `source` by then: a link loss that brought it
             # back while the new instance was publishing keeps the old instance.

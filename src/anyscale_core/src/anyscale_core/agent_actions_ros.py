@@ -13,7 +13,7 @@ import rospy
 from . import ros_convert as conv
 from .agent_client import wait_registered
 from .decision_engine import RenewLeases, StartNode, StopNode
-from .ghost_registrations import dead_registrations, purge
+from .ghost_registrations import dead_registrations, ghost_candidates, purge
 from .handover_ros import PUBLISHED, TIMED_OUT, OutputWatch, wait_for_output
 
 REGISTER_TIMEOUT_S = 30.0  # a started node not registered by then is reported as failed
@@ -250,9 +250,7 @@ class AgentActions:
             busy = set(self.handing_over)
             paused = self.pausing | {p.instance for status in self.statuses.values()
                                      for p in status.nodes if p.state == p.PAUSED}
-        names = [self.model.instance_name(n, s) for n, where in mapping.items() if n not in busy
-                 for s in self.ch.scale_names if s != where]
-        names = [n for n in names if n not in paused]
+        names = ghost_candidates(self.model, mapping, busy, paused)
         self.registrations.submit(lambda: self._purge(names), key="purge")
 
     def _purge(self, names):

@@ -28,7 +28,7 @@ from .model_todos import home_mapping
 from .process_group import log_tail
 from .profile_plan import CpuSample
 
-RUNNING, EXITED, REPLACED, LEASE_EXPIRED, STANDBY = 1, 3, 4, 5, 6
+RUNNING, EXITED, REPLACED, LEASE_EXPIRED, STANDBY, PAUSED = 1, 3, 4, 5, 6, 7
 ENDED = (EXITED, REPLACED, LEASE_EXPIRED)
 MAPPING_TOPIC = "/anyscale/mapping"
 
@@ -168,7 +168,8 @@ class AgentSession:
         for scale in scales:
             for p in self.processes(scale):
                 name = p.name.lstrip("/")
-                if p.state not in ENDED and p.state != STANDBY and name in self.home:
+                # A paused instance (launch.pause_at_home) is not where the node runs.
+                if p.state not in ENDED and p.state not in (STANDBY, PAUSED) and name in self.home:
                     out[name] = scale
         return out
 

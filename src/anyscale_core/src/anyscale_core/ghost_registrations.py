@@ -8,12 +8,22 @@ before the link went, and that TCP delivers once the link is back, registers it 
 decision node removes such registrations the way `rosnode cleanup` does, but only for instance
 names it manages, and only once the instance no longer answers on its XML-RPC API.
 """
-from typing import Iterable, List
+from typing import AbstractSet, Iterable, List, Mapping
 
 import rosgraph
 import rosnode
 
 from .agent_client import registered_pid
+
+
+def ghost_candidates(model, mapping: Mapping[str, str], busy: AbstractSet[str],
+                     paused: AbstractSet[str]) -> List[str]:
+    """Instance names to check: each node's on every scale but the one it runs on, except
+    nodes being handed over (both instances live) and paused instances (launch.pause_at_home:
+    registered, alive, but silent on their API until resumed)."""
+    return [name for node, where in mapping.items() if node not in busy
+            for scale in model.scale_names if scale != where
+            for name in [model.instance_name(node, scale)] if name not in paused]
 
 
 def registered_nodes(master: rosgraph.Master) -> set:

@@ -124,8 +124,8 @@ class AgentActions:
             reply = self.agents.stop(scale, node, self.params.engine.lease_s if best_effort
                                      else None, pause=pause)
             if not reply.success:
-                rospy.logwarn("anyscale decision: %s %s on %s: %s", "pause" if pause else "stop",
-                              node, scale, reply.message)
+                rospy.logwarn("anyscale decision: %s %s on %s: %s%s", "pause" if pause else "stop",
+                              node, scale, reply.message, "; stopping it instead" if pause else "")
         except Exception as e:  # noqa: BLE001 - its lease ends it anyway
             reply = None
             if not best_effort:
@@ -133,6 +133,9 @@ class AgentActions:
         if pause and (reply is None or not reply.success):
             with self.lock:
                 self.pausing.discard(instance)
+            # Not paused (e.g. it was still starting): left running, it would publish beside
+            # the instance that replaced it.
+            self._stop(node, scale, best_effort)
 
     def _start(self, action: StartNode, event, stamp, decided, handover=None) -> int:
         """Starts the node; its pid, or 0 if the start failed (then handled here)."""

@@ -270,14 +270,13 @@ void AgentNode::onGraph(const ros::SteadyTimerEvent&)
     topics_->update(*local);
 }
 
-void AgentNode::setStartPriority(const std::string& name, int pid, int nice, bool resumed)
+void AgentNode::setStartPriority(const std::string& name, int pid, int nice)
 {
-  // The boost is relative for a start: a node declared to yield (launch.nice > 0) still yields
-  // to a boosted node of nice 0 started with it (AR recognition's imports and set-up took the
-  // CPU AMCL needed for its first update). A resumed instance needs little CPU to catch up, and
-  // its output's tolerance counts from the loss like any other's: it yields to nobody then.
-  // (AR resumed beside AMCL waited out AMCL's first update: 1.38 s of silence, Δ = 1 s.)
-  const int boosted = std::clamp((resumed ? std::min(nice, 0) : nice) + start_boost_nice_, -20, 19);
+  // The boost is relative: a node declared to yield (launch.nice > 0) still yields to a boosted
+  // node of nice 0 started with it. Also when both are resumed (agent README, "Paused at home"):
+  // AR recognition takes every frame it can, and resumed at AMCL's priority it halved AMCL's
+  // CPU for the whole boost (AMCL's return 2.43 s, Δ 2 s).
+  const int boosted = std::clamp(nice + start_boost_nice_, -20, 19);
   std::string error;
   if (boosted != 0 && !setProcessNice(pid, boosted, &error))
   {

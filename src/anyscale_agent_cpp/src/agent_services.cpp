@@ -103,7 +103,7 @@ void AgentNode::startNode(const anyscale_msgs::StartNode::Request& req, anyscale
       std::string error;
       if (const int pid = supervisor_.resume(name, &error); pid > 0)
       {
-        setStartPriority(name, pid, decl->nice, true);
+        setStartPriority(name, pid, decl->nice);
         std::lock_guard<std::mutex> lock(leases_mutex_);
         leases_.grant(name, steadyNow(), req.lease_s);
         res.success = true;

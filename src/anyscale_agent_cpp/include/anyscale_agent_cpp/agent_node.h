@@ -65,7 +65,7 @@ private:
   void onUplink(const ros::SteadyTimerEvent&);      // carrier of ~uplink_interface; status on change
   void applyUplink(anyscale_msgs::LinkStatistics& link) const;
   // The node's launch.nice, with ~start_boost_nice added for its first ~start_boost_s.
-  void setStartPriority(const std::string& name, int pid, int nice, bool resumed = false);
+  void setStartPriority(const std::string& name, int pid, int nice);
   void endBoosts();  // on the supervision thread
 
   // Warm standbys (agent_services.cpp): one per warm_start node, also while it runs here.

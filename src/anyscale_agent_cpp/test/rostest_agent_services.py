@@ -8,6 +8,7 @@ import time
 import unittest
 
 import psutil
+import rosgraph
 import rospy
 import rostest
 from anyscale_msgs.msg import NodeProcess
@@ -54,6 +55,40 @@ class AgentServicesTest(unittest.TestCase):
             self.assertEqual(self.agent.node("/" + node).state, NodeProcess.EXITED)
             # Clean SIGINT shutdown: the node unregistered itself.
             self.assertTrue(wait_for(lambda: registered_pid("/" + node) is None, 5.0))
+
+    def test_a_paused_node_is_silent_until_a_start_resumes_it(self):
+        from std_msgs.msg import String
+        res = self._start("talker_py")
+        self.assertTrue(res.success, res.message)
+        try:
+            self.assertTrue(wait_for(lambda: self.agent.node("/talker_py").state == NodeProcess.RUNNING, 20.0))
+            rospy.wait_for_message("/py_chatter", String, timeout=10.0)
+            paused = self.agent.stop(node="talker_py", wait=True, pause=True)
+            self.assertTrue(paused.success, paused.message)
+            self.assertEqual(self.agent.node("/talker_py").state, NodeProcess.PAUSED)
+            self.assertEqual(psutil.Process(res.pid).status(), psutil.STATUS_STOPPED)
+            # Still registered (its XML-RPC API does not answer: it is paused too), publishing
+            # nothing.
+            self.assertTrue(rosgraph.Master("/agent_test").lookupNode("/talker_py"))
+            heard = []
+            sub = rospy.Subscriber("/py_chatter", String, heard.append)
+            time.sleep(1.0)
+            self.assertEqual(heard, [])
+            resumed = self._start("talker_py")
+            self.assertTrue(resumed.success, resumed.message)
+            self.assertIn("resumed", resumed.message)
+            self.assertEqual(resumed.pid, res.pid)             # the same process, not a new one
+            self.assertEqual(self.agent.node("/talker_py").state, NodeProcess.RUNNING)
+            self.assertTrue(wait_for(lambda: heard, 10.0))
+            sub.unregister()
+            # A paused node stops cleanly: SIGINT reaches it, and it unregisters.
+            self.assertTrue(self.agent.stop(node="talker_py", wait=True, pause=True).success)
+            self.assertEqual(self.agent.node("/talker_py").state, NodeProcess.PAUSED)
+        finally:
+            stop = self.agent.stop(node="talker_py", wait=True)
+        self.assertTrue(stop.success, stop.message)
+        self.assertFalse(alive(res.pid))
+        self.assertTrue(wait_for(lambda: registered_pid("/talker_py") is None, 5.0))
 
     def test_params_remaps_and_overrides(self):
         res = self._start("talker_py", overrides=[("rate", "7.5"), ("extra", "2")])

@@ -14,7 +14,8 @@ class Clock:
 
 def test_regular_checks_see_no_pause_and_a_long_gap_is_reported_once():
     clock = Clock()
-    watch = PauseWatch(2.0, clock)
+    seen = []
+    watch = PauseWatch(2.0, seen.append, clock)
     for _ in range(5):
         clock.t += 0.1
         assert watch.check() == 0.0
@@ -23,14 +24,15 @@ def test_regular_checks_see_no_pause_and_a_long_gap_is_reported_once():
     assert watch.check() == 0.0              # the other caller, right after: already reported
     clock.t += 1.9                           # a slow stretch below the threshold is no pause
     assert watch.check() == 0.0
+    assert seen == [30.0]                    # reported once
 
 
 def test_the_watch_thread_calls_back_for_a_pause_and_stops_when_asked():
     clock = Clock()
-    watch = PauseWatch(2.0, clock)
     seen, stop = [], threading.Event()
+    watch = PauseWatch(2.0, seen.append, clock)
     clock.t += 5.0
-    t = threading.Thread(target=watch.watch, args=(0.01, seen.append, lambda: not stop.is_set()))
+    t = threading.Thread(target=watch.watch, args=(0.01, lambda: not stop.is_set()))
     t.start()
     for _ in range(200):
         if seen:

@@ -11,25 +11,27 @@ from typing import Callable
 
 
 class PauseWatch:
-    def __init__(self, gap_s: float, clock: Callable[[], float] = time.monotonic):
+    def __init__(self, gap_s: float, on_pause: Callable[[float], None],
+                 clock: Callable[[], float] = time.monotonic):
         self.gap_s = gap_s
+        self.on_pause = on_pause
         self.clock = clock
         self.awake = clock()
         self.lock = threading.Lock()
 
     def check(self) -> float:
         """How long the pause that just ended lasted (s), or 0.0 if there was none. Each pause
-        is reported once, to whichever caller checks first."""
+        is reported once, to on_pause(gap), by whichever caller checks first."""
         with self.lock:
             now = self.clock()
             gap, self.awake = now - self.awake, now
-        return gap if gap > self.gap_s else 0.0
+        if gap <= self.gap_s:
+            return 0.0
+        self.on_pause(gap)
+        return gap
 
-    def watch(self, period_s: float, on_pause: Callable[[float], None],
-              running: Callable[[], bool]):
-        """Checks every period_s while running(); calls on_pause(gap) for each pause."""
+    def watch(self, period_s: float, running: Callable[[], bool]):
+        """Checks every period_s while running()."""
         while running():
             time.sleep(period_s)
-            gap = self.check()
-            if gap:
-                on_pause(gap)
+            self.check()

@@ -1,6 +1,5 @@
 """System constraints (paper III-B-4): scale CPU capacity, network bandwidth, remote links, and
 the per-connection frequency/tolerance condition tracked over time."""
-from collections import deque
 from dataclasses import dataclass, field, replace
 import math
 from typing import Any, Dict, List, Mapping, Optional
@@ -22,7 +21,7 @@ class DynamicState:
     scale_load: Mapping[str, float] = field(default_factory=dict)  # % of CPU not from model nodes
     link_up: Mapping[str, bool] = field(default_factory=dict)      # per remote scale; absent = up
     # What a mapping may make cross scales beyond what already crosses: the bandwidth the link
-    # has held for a while, less a margin (BandwidthHold). inf: no such limit (the paper's).
+    # has held for a while, less a margin (link_capacity.BandwidthHold). inf: no such limit (the paper's).
     admit_bandwidth_mbps: float = math.inf
 
     @staticmethod
@@ -98,41 +97,6 @@ def admission_state(ch: Characterisation, assign: np.ndarray,
     limit = min(state.bandwidth_mbps,
                 max(state.admit_bandwidth_mbps, required_bandwidth(ch, assign)))
     return replace(state, bandwidth_mbps=limit)
-
-
-class BandwidthHold:
-    """The least bandwidth the link showed over the last hold_s, less a margin: what a move
-    out may count on. 0 until the link has been watched that long, and after a loss: a link
-    that just came back has shown nothing yet. After a loss the link must also have stayed up
-    for hold_after_loss_s: at the edge of coverage it comes and goes, and a node moved out on
-    its first few good seconds comes home again by a link-loss return, the kind that strains
-    the tolerances."""
-
-    def __init__(self, hold_s: float, margin: float, hold_after_loss_s: float = 0.0):
-        self.hold_s = hold_s
-        self.margin = margin
-        self.hold_after_loss_s = hold_after_loss_s
-        self._samples: deque = deque()      # (t, Mbit/s), 0 = link down or weak
-        self._since: Optional[float] = None  # when watching began
-        self._lost_at = -math.inf            # the latest time the link was seen down
-
-    def add(self, t: float, mbps: float, lost: bool = False):
-        """A reading at time t; `lost`: the link was down (not merely weak)."""
-        if self._since is None:
-            self._since = t
-        if lost:
-            self._lost_at = t
-        self._samples.append((t, mbps))
-        while len(self._samples) > 1 and self._samples[1][0] <= t - self.hold_s:
-            self._samples.popleft()
-
-    def admissible(self, t: float) -> float:
-        if self._since is None or t - self._since < self.hold_s:
-            return 0.0
-        if t - self._lost_at < self.hold_after_loss_s:
-            return 0.0
-        held = min(m for _, m in self._samples)
-        return held / (1.0 + self.margin)
 
 
 def scale_cpu(ch: Characterisation, assign: np.ndarray, load: np.ndarray) -> np.ndarray:

@@ -13,15 +13,10 @@ import numpy as np
 
 from .allocators import AllocationContext
 from .characterisation import Characterisation
-from .constraints import (BandwidthHold, DynamicState, FrequencyToleranceTracker,
-                          required_bandwidth)
+from .constraints import DynamicState, FrequencyToleranceTracker, required_bandwidth
 from .cost import ObjectiveIntegrator, perf
+from .link_capacity import BandwidthHold, LinkCapacity
 from .restart_backoff import BackoffParams, RestartBackoff
-
-
-# After a move, the streams of the mapping before it still count as crossing the link this long
-# (the handover, then a bandwidth reading taken without them: the echo runs every second).
-STREAMS_SETTLE_S = 3.0
 
 
 @dataclass(frozen=True)
@@ -39,7 +34,7 @@ class DecisionParams:
     # or what moved out would come back at once): the probe overrates what a stream gets.
     bandwidth_stay_margin: float = 0.15
     # A link measured below this is about to be lost: it counts as carrying nothing, so nodes
-    # come home while a handover can still cross it (0: off). See DecisionEngine.usable_bandwidth.
+    # come home while a handover can still cross it (0: off). See LinkCapacity.usable.
     weak_link_mbps: float = 0.0
     # After a link loss, a move out also waits until the link has been up this long (0: only
     # bandwidth_hold_s). See BandwidthHold.
@@ -143,10 +138,10 @@ class DecisionEngine:
                          for c in ch.model.connections]
         self.load_filter: Dict[str, Tuple[float, float]] = {}   # scale -> (report time, load)
         self.backoff = [RestartBackoff(params.restart) for _ in ch.node_names]
-        self.bandwidth_hold = BandwidthHold(params.bandwidth_hold_s, params.bandwidth_margin,
-                                            params.hold_after_loss_s)
+        self.link = LinkCapacity(BandwidthHold(params.bandwidth_hold_s, params.bandwidth_margin,
+                                               params.hold_after_loss_s),
+                                 params.bandwidth_stay_margin, params.weak_link_mbps)
         self.start_acked_at: Dict[int, float] = {}   # node -> when its latest start was answered
-        self.streams: List[Tuple[float, float]] = []  # (until when, Mbit/s) of earlier mappings
 
     # --- start-up -----------------------------------------------------------------------------
     def adopt_or_start(self, reports: Mapping[str, ScaleReport], now: float) -> TickResult:
@@ -182,18 +177,16 @@ class DecisionEngine:
         up = state.up_vector(self.ch)
         remote_up = any(up[k] for k in range(self.ch.num_scales) if k != self.ch.master)
         measured = self._measured_bandwidth(reports, now)
-        # Nothing measured (a link that just came back) has shown nothing: 0 for moves out.
-        self.bandwidth_hold.add(now, measured if remote_up and not self.is_weak(measured, now)
-                                and math.isfinite(measured) else 0.0, lost=not remote_up)
-        state = replace(state, admit_bandwidth_mbps=self.bandwidth_hold.admissible(now))
+        streams = required_bandwidth(self.ch, self.assign)
+        self.link.observe(now, measured, remote_up, streams)
+        state = replace(state, admit_bandwidth_mbps=self.link.admissible(now))
         if not moves_allowed:
             restarts, restart_events = self._restarts(reports, up, now, starting)
             return TickResult(restarts + self._renewals(up), restart_events, state, [])
         violating = self._update_trackers(reports, now)
         ctx = AllocationContext(now, self.params.hysteresis_s, dict(self.migrated_back_at),
                                 violating)
-        streams = required_bandwidth(self.ch, self.assign)
-        weak = self.is_weak(measured, now)
+        weak = self.link.is_weak(measured, now, streams)
         decision = self.allocator.step(self.ch, self.assign, state, ctx)
         actions, events = [], []
         for move in decision.moves:
@@ -217,8 +210,7 @@ class DecisionEngine:
                 self.migrated_back_at[move.node] = now
             self.moved_at[move.node] = now
         if decision.moves:
-            self.streams.append((now, streams))     # what crossed until now
-            self.streams = [(t, b) for t, b in self.streams if t >= now - STREAMS_SETTLE_S]
+            self.link.mapping_changed(now, streams)
             self.assign = decision.assign.copy()
             self.objective.change(now, perf(self.ch, self.assign))
         restarts, restart_events = self._restarts(reports, up, now, starting,
@@ -263,30 +255,6 @@ class DecisionEngine:
         """The latest state of a node that hands its state over (e.g. its last pose)."""
         self.handoff[node] = dict(params)
 
-    def is_weak(self, measured_mbps: float, now: float) -> bool:
-        """Whether the link itself is weak, not just filled by the streams sent across it: the
-        echo then measures what they leave (a 6 Mbit/s link carrying AR's camera read 1.1),
-        and the bandwidth rule brings the heavy node home. What the link carries is about the
-        reading plus those streams, counted for STREAMS_SETTLE_S after they stopped: the old
-        instance streams until the new one has published, and the estimate needs a reading
-        taken after that."""
-        carried = max([b for t, b in self.streams if t >= now - STREAMS_SETTLE_S] +
-                      [required_bandwidth(self.ch, self.assign)])
-        return (math.isfinite(measured_mbps)
-                and measured_mbps + carried < self.params.weak_link_mbps)
-
-    def usable_bandwidth(self, measured_mbps: float, now: float) -> float:
-        """What the allocator may place on a link measured at measured_mbps: the measurement
-        less the stay margin (moves out are held to more, see BandwidthHold). A WiFi link is
-        seldom lost from full rate: rate adaptation first steps down to its lowest rates, and
-        a node brought home while the link still carries the handover is a planned move (the
-        new instance publishes before the old one stops), where one brought home by the loss
-        leaves its output silent until it has started on the robot. So a weak link carries
-        nothing: nodes come home, and none moves out until the link is better again."""
-        if self.is_weak(measured_mbps, now):
-            return 0.0
-        return measured_mbps / (1.0 + self.params.bandwidth_stay_margin)
-
     def _reason(self, move, measured: float, streams: float, weak: bool) -> str:
         """The allocator's reason, in the link's measured terms for a bandwidth return."""
         if move.target != self.ch.master or not move.reason.startswith("bandwidth"):
@@ -319,8 +287,8 @@ class DecisionEngine:
         # Until a link is measured, the paper's nominal figure: nothing that is out comes back
         # for want of a measurement (a move out needs one, see BandwidthHold).
         measured = self._measured_bandwidth(reports, now)
-        bandwidth = self.usable_bandwidth(measured, now) if math.isfinite(measured) else \
-            self.ch.model.network.max_bandwidth_mbps
+        bandwidth = self.link.usable(measured, now, required_bandwidth(self.ch, self.assign)) \
+            if math.isfinite(measured) else self.ch.model.network.max_bandwidth_mbps
         return DynamicState(bandwidth, loads, link_up)
 
     def _measured_bandwidth(self, reports: Mapping[str, ScaleReport], now: float) -> float:

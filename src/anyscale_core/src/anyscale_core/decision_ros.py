@@ -343,7 +343,7 @@ class DecisionNode(AgentActions):
             stat.summary(DiagnosticStatus.OK, "no decision yet")
             return stat
         # state.bandwidth_mbps is what the allocator may place: the estimate less the stay
-        # margin, 0 on a weak link (DecisionEngine.usable_bandwidth).
+        # margin, 0 on a weak link (LinkCapacity.usable).
         stat.summary(DiagnosticStatus.OK, f"link usable {state.bandwidth_mbps:.1f} Mbit/s, "
                      f"{state.admit_bandwidth_mbps:.1f} held for moves out")
         for s in self.ch.scale_names:

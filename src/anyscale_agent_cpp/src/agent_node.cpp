@@ -103,11 +103,11 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   sample_period_s_ = 1.0 / positive(pnh_, "sample_rate_hz", 2.0);
   warm_start_ = param(pnh_, "warm_start", true);
   standby_delay_s_ = positive(pnh_, "standby_delay_s", standby_delay_s_);
-  start_boost_nice_ = param(pnh_, "start_boost_nice", 0);
-  if (start_boost_nice_ < -20 || start_boost_nice_ > 0)
+  const int start_boost_nice = param(pnh_, "start_boost_nice", 0);
+  if (start_boost_nice < -20 || start_boost_nice > 0)
     throw std::runtime_error("parameter ~start_boost_nice must be a nice value from -20 to 0 (0: no boost), got " +
-                             std::to_string(start_boost_nice_));
-  start_boost_s_ = positive(pnh_, "start_boost_s", start_boost_s_);
+                             std::to_string(start_boost_nice));
+  boosts_ = StartBoosts(start_boost_nice, positive(pnh_, "start_boost_s", 3.0));
 
   topics_ = std::make_unique<TopicWatcher>(nh_, positive(pnh_, "rate_window_s", 2.0),
                                            std::max(1, param(pnh_, "topic_queue_size", 50)),
@@ -272,41 +272,34 @@ void AgentNode::onGraph(const ros::SteadyTimerEvent&)
 
 void AgentNode::setStartPriority(const std::string& name, int pid, int nice)
 {
-  // The boost is relative: a node declared to yield (launch.nice > 0) still yields to a boosted
-  // node of nice 0 started with it. Also when both are resumed (agent README, "Paused at home"):
-  // AR recognition takes every frame it can, and resumed at AMCL's priority it halved AMCL's
-  // CPU for the whole boost (AMCL's return 2.43 s, Δ 2 s).
-  const int boosted = std::clamp(nice + start_boost_nice_, -20, 19);
+  // Relative to the declared nice also when both nodes are resumed (agent README, "Paused at
+  // home"): AR recognition takes every frame it can, and resumed at AMCL's priority it halved
+  // AMCL's CPU for the whole boost (AMCL's return 2.43 s, Δ 2 s).
+  const int start_nice = boosts_.startNice(nice);
   std::string error;
-  if (boosted != 0 && !setProcessNice(pid, boosted, &error))
+  if (start_nice != 0 && !setProcessNice(pid, start_nice, &error))
   {
     ROS_WARN_ONCE("%s: cannot run it at nice %d (%s)%s; nodes run at the agent's priority", name.c_str(),
-                  boosted, error.c_str(), boosted < 0 ? ": raising a priority needs CAP_SYS_NICE" : "");
+                  start_nice, error.c_str(), start_nice < 0 ? ": raising a priority needs CAP_SYS_NICE" : "");
     return;
   }
-  if (boosted == nice)
-    return;
   std::lock_guard<std::mutex> lock(boost_mutex_);
-  boosted_[name] = { pid, steadyNow() + start_boost_s_, nice };
+  boosts_.started(name, pid, nice, steadyNow());
 }
 
 void AgentNode::endBoosts()
 {
-  std::lock_guard<std::mutex> lock(boost_mutex_);
-  const double now = steadyNow();
-  for (auto it = boosted_.begin(); it != boosted_.end();)
+  std::vector<StartBoosts::Due> due;
   {
-    const Boost b = it->second;
-    if (now < b.until)
-    {
-      ++it;
-      continue;
-    }
-    const auto info = supervisor_.info(it->first);
+    std::lock_guard<std::mutex> lock(boost_mutex_);
+    due = boosts_.takeDue(steadyNow());
+  }
+  for (const auto& boost : due)
+  {
+    const auto info = supervisor_.info(boost.name);
     std::string error;
-    if (info && info->pid == b.pid && !setProcessNice(b.pid, b.nice, &error))
-      ROS_WARN("%s: could not end its start priority: %s", it->first.c_str(), error.c_str());
-    it = boosted_.erase(it);
+    if (info && info->pid == boost.pid && !setProcessNice(boost.pid, boost.nice, &error))
+      ROS_WARN("%s: could not end its start priority: %s", boost.name.c_str(), error.c_str());
   }
 }
 

@@ -23,6 +23,7 @@
 #include "anyscale_agent_cpp/link_monitor.h"
 #include "anyscale_agent_cpp/master_call_watchdog.h"
 #include "anyscale_agent_cpp/node_model.h"
+#include "anyscale_agent_cpp/start_boosts.h"
 #include "anyscale_agent_cpp/supervisor.h"
 #include "anyscale_agent_cpp/system_sampler.h"
 #include "anyscale_agent_cpp/topic_watcher.h"
@@ -99,15 +100,7 @@ private:
   double standby_delay_s_ = 2.0;    // the next standby this long after the last one became the node
   std::map<std::string, double> standby_due_;  // node -> steady time its standby may start
   std::map<std::string, int> last_standby_pid_;  // node -> pid of the standby started last
-  int start_boost_nice_ = 0;         // ~start_boost_nice: a started node's nice for its first seconds
-  double start_boost_s_ = 3.0;      // ~start_boost_s
-  struct Boost
-  {
-    int pid;
-    double until;  // steady time
-    int nice;      // what the node runs at afterwards
-  };
-  std::map<std::string, Boost> boosted_;
+  StartBoosts boosts_;              // ~start_boost_nice, ~start_boost_s
   std::mutex boost_mutex_;
   std::string uplink_interface_;    // ~uplink_interface: whose carrier loss cuts the other scales off
   std::atomic<bool> uplink_up_{ true };

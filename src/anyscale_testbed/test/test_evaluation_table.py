@@ -12,7 +12,7 @@ from anyscale_testbed.evaluation_figures import (AMCL_ON_LAPTOP, AR_ON_LAPTOP, B
                                                  mean_abs_omega_deg_s, run_figures)
 from anyscale_testbed.evaluation_table import (baseline_of, format_markdown, format_table,
                                                gain, paper_comparison, table_lines, write_csv)
-from anyscale_testbed.testbed_record import TestbedRecord, tolerance_violations
+from anyscale_testbed.testbed_record import TestbedRecord, mapping_at, tolerance_violations
 
 AMCL_MBPS = 0.22
 
@@ -22,19 +22,24 @@ def on(amcl="robot", ar="robot"):
 
 
 def record(done_t=110.0, speed=0.3, yaw_rate=0.05, link_until=60.0, mappings=None,
-           amcl_gap=None):
-    """Navigation from t=10 to done_t; the robot drives east at `speed` turning at `yaw_rate`
-    rad/s; the link up at 10 Mbit/s until `link_until`, then down."""
+           amcl_gap=None, out_speed=None):
+    """Navigation from t=10 to done_t; the robot drives east at `speed` (at `out_speed` while
+    AMCL is on the laptop, if given) turning at `yaw_rate` rad/s; the link up at 10 Mbit/s
+    until `link_until`, then down."""
     times = [round(0.1 * k, 1) for k in range(0, 2501)]
     amcl = [t for t in times[::2] if amcl_gap is None or not amcl_gap[0] < t < amcl_gap[1]]
+    mappings = mappings if mappings is not None else [
+        (5.0, on(), 0.0, 0.0), (30.0, on(amcl="laptop"), 0.0, 0.0), (60.0, on(), 0.0, 0.0)]
+    x = [0.0]
+    for t in times[:-1]:
+        amcl_out = mapping_at(TestbedRecord(mappings=mappings), t).get("amcl") == "laptop"
+        x.append(x[-1] + 0.1 * (out_speed if out_speed is not None and amcl_out else speed))
     rec = TestbedRecord(
         world="small_loop", link="coverage", finished_t=250.0,
-        truth=[(t, speed * t, 0.0) for t in times],
+        truth=[(t, xt, 0.0) for t, xt in zip(times, x)],
         truth_yaw=[(t, yaw_rate * t) for t in times],
-        estimate=[(t, speed * t + 0.1, 0.0) for t in times[::5]],
-        bandwidth=[(0.0, 10.0), (link_until, 0.0)],
-        mappings=mappings if mappings is not None else [
-            (5.0, on(), 0.0, 0.0), (30.0, on(amcl="laptop"), 0.0, 0.0), (60.0, on(), 0.0, 0.0)],
+        estimate=[(t, xt + 0.1, 0.0) for t, xt in zip(times[::5], x[::5])],
+        bandwidth=[(0.0, 10.0), (link_until, 0.0)], mappings=mappings,
         navigation_status=[(10.0, "drive 0/4")] + ([(done_t, "done 4/4")] if done_t else []),
         receipts={"/amcl_pose": amcl}, outputs={"amcl": "/amcl_pose"},
         tolerances={"/amcl_pose": 2.0}, markers_seen=[0, 1, 2, 3])
@@ -59,16 +64,27 @@ def test_time_shares_of_the_configurations_over_the_mission():
     assert along[0] == BOTH_ON_ROBOT and along[250] == AMCL_ON_LAPTOP and len(along) == 1001
 
 
-def test_coverage_bound_drives_fast_where_the_link_carries_amcl():
-    bound = coverage_bound(record(), AMCL_MBPS)
-    assert bound.path_m == pytest.approx(30.0)              # 100 s at 0.3 m/s
-    assert bound.carried_share == pytest.approx(0.5)        # the link went at t=60
-    assert bound.drive_s == pytest.approx(15 / 0.4 + 15 / 0.2)
-    assert bound.gain == pytest.approx(0.25)
-    # A link too thin for AMCL's traffic is no better than none; a full one halves the time.
-    assert coverage_bound(record(), 12.0).gain == pytest.approx(0.0)
-    assert coverage_bound(record(link_until=1e9), AMCL_MBPS).gain == pytest.approx(0.5)
-    assert math.isnan(coverage_bound(TestbedRecord(), AMCL_MBPS).gain)
+def test_coverage_bound_has_amcl_out_wherever_the_link_carries_it_at_the_runs_own_speeds():
+    # AMCL out 30-60 s at 0.4 m/s, home at 0.2 m/s; the link carries it until 60 s.
+    bound = coverage_bound(record(speed=0.2, out_speed=0.4), AMCL_MBPS)
+    assert (bound.home_mps, bound.out_mps) == (pytest.approx(0.2), pytest.approx(0.4))
+    assert bound.path_m == pytest.approx(4 + 12 + 10)      # 10-30 s, 30-60 s, 60-110 s
+    assert bound.carried_share == pytest.approx(16 / 26)
+    assert bound.time_s == pytest.approx(100 - 10)          # 10-30 s: 4 m at 0.4 m/s, not 0.2
+    # AMCL out until 70 s, 10 s past the link: the bound has it home there, at 0.2 m/s.
+    late = [(5.0, on(), 0.0, 0.0), (30.0, on(amcl="laptop"), 0.0, 0.0), (70.0, on(), 0.0, 0.0)]
+    assert coverage_bound(record(speed=0.2, out_speed=0.4, mappings=late),
+                          AMCL_MBPS).time_s == pytest.approx(100 - 10 + 10)
+    # A link too thin for AMCL's traffic is no better than none.
+    assert coverage_bound(record(speed=0.2, out_speed=0.4), 12.0).time_s == \
+        pytest.approx(100 + 30 * 0.4 / 0.2 - 30)
+    # The run's own speeds: one that drove home as fast as out gains nothing from the bound.
+    assert coverage_bound(record(), AMCL_MBPS).time_s == pytest.approx(100)
+    # A case the run did not drive in has the premise's speed (0.4 m/s with AMCL out).
+    never_out = coverage_bound(record(speed=0.2, mappings=[(5.0, on(), 0.0, 0.0)]), AMCL_MBPS)
+    assert never_out.out_mps == 0.4 and never_out.time_s == pytest.approx(100 - 50 * 0.2 / 0.4)
+    assert math.isnan(coverage_bound(TestbedRecord(), AMCL_MBPS).time_s)
+    assert math.isnan(coverage_bound(record(done_t=None), AMCL_MBPS).time_s)
 
 
 def test_mean_abs_omega_over_the_mission_and_nan_without_heading():
@@ -81,10 +97,11 @@ def test_mean_abs_omega_over_the_mission_and_nan_without_heading():
 def campaign():
     baseline = run_figures("baseline", "baseline", 0, 0,
                            record(done_t=210.0, mappings=[]), AMCL_MBPS)
-    # The link carries AMCL over the first half of each test's path: a bound of 25 %.
+    # The link carries AMCL over the first half of each test's path; the robot drives twice as
+    # fast with AMCL out (30-60 s) as at home.
     tests = [run_figures(f"AnyScale seed {s}", "paper", s, 0,
-                         record(done_t=160.0 + s, link_until=10.0 + (150.0 + s) / 2),
-                         AMCL_MBPS) for s in (1, 2)]
+                         record(done_t=160.0 + s, link_until=10.0 + (150.0 + s) / 2,
+                                out_speed=0.6), AMCL_MBPS) for s in (1, 2)]
     broken = run_figures("optimal seed 1", "optimal", 1, 0,
                          record(done_t=None, amcl_gap=(40.0, 45.0)), AMCL_MBPS)
     missing = run_figures("optimal seed 2", "optimal", 2, 1, None, AMCL_MBPS)
@@ -106,8 +123,9 @@ def test_gains_against_the_baseline_and_the_share_of_the_bound():
     head = lines[0]
     row = dict(zip(head, lines[2]))
     assert row["time to complete"] == "151 s" and row["gain vs baseline"] == "24.5 %"
-    assert row["coverage bound"] == "150 s (25.0 %)"         # 200 s cut by the bound's 25 %
-    assert row["share of bound's gain"] == "98.0 %"
+    # Home but carried 10-30 s and 60-85.5 s: 45.5 s at 0.3 m/s would have taken 22.75 s.
+    assert row["coverage bound"] == "128 s (35.9 %)"         # 151 - 22.75 s against 200 s
+    assert row["share of bound's gain"] == "68.3 %"
     assert row["mean |w|"] == "2.86 °/s" and row["|w| / baseline"] == "1.000"
     assert row["markers"] == "4" and row["AMCL RMS error"] == "0.100 m"
     assert row["AMCL on laptop time"] == "19.9 %" and row["both on robot time"] == "80.1 %"
@@ -142,7 +160,7 @@ def test_the_paper_beside_ours():
     assert lines[0] == "mean gain of the AnyScale tests: paper 28.0 % over 4 tests; here 24.2 % " \
                        "over 2"
     assert lines[1] == "best case (the network everywhere): paper 50.0 %; here 50.0 %"
-    assert lines[2].startswith("share of the coverage bound's gain reached: here 97.0 %")
+    assert lines[2].startswith("share of the coverage bound's gain reached: here 67.9 %")
     assert lines[3] == "mean |w| against the baseline: paper about 5.0 % above; here 0.0 % above"
     assert lines[4] == "highest mean |w|: limit of safe behaviour 4 °/s; here 2.86 °/s"
 
@@ -162,5 +180,5 @@ def test_text_markdown_and_csv_copies(tmp_path):
     assert [r["kind"] for r in rows] == ["baseline", "paper", "paper", "optimal", "optimal",
                                          "best_case"]
     assert float(rows[1]["gain_vs_baseline"]) == pytest.approx(1 - 151 / 200)
-    assert rows[1]["bound_gain"] == "0.2500" and rows[4]["time_to_complete_s"] == ""
+    assert rows[1]["bound_gain"] == "0.3587" and rows[4]["time_to_complete_s"] == ""
     assert rows[1]["time_share AMCL on laptop"] == "0.1987" and rows[1]["markers"] == "4"

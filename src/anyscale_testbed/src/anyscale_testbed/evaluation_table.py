@@ -58,16 +58,15 @@ def gain(f: RunFigures, baseline: Optional[Baseline]) -> float:
     return 1.0 - _ratio(f.row.path_time_s, baseline.path_time_s if baseline else None)
 
 
-def bound_time_s(f: RunFigures, baseline: Optional[Baseline]) -> float:
-    """The coverage bound as a time to complete: the baseline's, cut by the bound's gain."""
-    if baseline is None:
-        return math.nan
-    return baseline.path_time_s * (1.0 - f.bound.gain)
+def bound_gain(f: RunFigures, baseline: Optional[Baseline]) -> float:
+    """The coverage bound's gain against the baseline (evaluation_figures.coverage_bound)."""
+    return 1.0 - _ratio(f.bound.time_s, baseline.path_time_s if baseline else None)
 
 
 def bound_share(f: RunFigures, baseline: Optional[Baseline]) -> float:
     """The share of the coverage bound's gain this run reached."""
-    return _ratio(gain(f, baseline), f.bound.gain if f.bound.gain > 0 else None)
+    reachable = bound_gain(f, baseline)
+    return _ratio(gain(f, baseline), reachable if reachable > 0 else None)
 
 
 def _percent(v: float) -> str:
@@ -88,8 +87,8 @@ def header(topics: Sequence[str]) -> List[str]:
 def run_cells(f: RunFigures, baseline: Optional[Baseline], topics: Sequence[str]) -> List[str]:
     base_omega = baseline.mean_omega_deg_s if baseline else None
     has_bound = f.kind not in ("baseline", "best_case")
-    bound = (f"{bound_time_s(f, baseline):.0f} s ({_percent(f.bound.gain)})"
-             if has_bound and math.isfinite(bound_time_s(f, baseline)) else "-")
+    bound = (f"{f.bound.time_s:.0f} s ({_percent(bound_gain(f, baseline))})"
+             if has_bound and math.isfinite(f.bound.time_s) else "-")
     return ([f.name, str(f.row.exit_code), _fixed(f.row.path_time_s, " s", 0),
              _percent(gain(f, baseline)), bound,
              _percent(bound_share(f, baseline)) if has_bound else "-",
@@ -112,7 +111,6 @@ def mean_cells(kind: str, runs: Sequence[RunFigures], baseline: Optional[Baselin
     """The mean over one allocator's seeded tests (of the runs that have each figure)."""
     base_omega = baseline.mean_omega_deg_s if baseline else None
     omega = _nanmean([f.mean_omega_deg_s for f in runs])
-    bound_gain = _nanmean([f.bound.gain for f in runs])
     silences = []
     for t in topics:
         longest = [f.row.longest_s.get(t, math.nan) for f in runs]
@@ -121,7 +119,8 @@ def mean_cells(kind: str, runs: Sequence[RunFigures], baseline: Optional[Baselin
     return ([f"mean {KIND_TITLES.get(kind, kind)}, {len(runs)} tests", "",
              _fixed(_nanmean([f.row.path_time_s for f in runs]), " s", 0),
              _percent(_nanmean([gain(f, baseline) for f in runs])),
-             f"- ({_percent(bound_gain)})",
+             f"{_fixed(_nanmean([f.bound.time_s for f in runs]), ' s', 0)} "
+             f"({_percent(_nanmean([bound_gain(f, baseline) for f in runs]))})",
              _percent(_nanmean([bound_share(f, baseline) for f in runs])),
              _fixed(omega, " °/s", 2), _fixed(_ratio(omega, base_omega), "", 3),
              _fixed(_nanmean([f.markers for f in runs]), "", 1),
@@ -212,6 +211,7 @@ def write_csv(path: str, figures: Sequence[RunFigures]):
         w = csv.writer(out)
         w.writerow(["run", "kind", "seed", "exit_code", "time_to_complete_s",
                     "gain_vs_baseline", "bound_time_s", "bound_gain", "share_of_bound_gain",
+                    "driving_mps_amcl_home", "driving_mps_amcl_out",
                     "mean_abs_omega_deg_s", "omega_ratio_to_baseline", "markers",
                     "amcl_rms_error_m"]
                    + [f"longest_silence_s {t}" for t in topics]
@@ -220,8 +220,9 @@ def write_csv(path: str, figures: Sequence[RunFigures]):
                    + [f"time_share {c}" for c in CONFIGURATIONS] + ["note"])
         for f in figures:
             w.writerow([f.name, f.kind, f.seed, f.row.exit_code, _number(f.row.path_time_s),
-                        _number(gain(f, baseline)), _number(bound_time_s(f, baseline)),
-                        _number(f.bound.gain), _number(bound_share(f, baseline)),
+                        _number(gain(f, baseline)), _number(f.bound.time_s),
+                        _number(bound_gain(f, baseline)), _number(bound_share(f, baseline)),
+                        _number(f.bound.home_mps), _number(f.bound.out_mps),
                         _number(f.mean_omega_deg_s),
                         _number(_ratio(f.mean_omega_deg_s,
                                        baseline.mean_omega_deg_s if baseline else None)),

@@ -149,6 +149,22 @@ def mean_abs_omega_deg_s(rec: TestbedRecord) -> float:
     return mean_abs_angular_velocity_deg(t, a)
 
 
+def turning_per_metre_deg(rec: TestbedRecord) -> float:
+    """Heading change per metre driven over the mission (deg/m): how much the robot turns for
+    the path it covers. Mean |omega| is this times the mean speed, so on the same loop a robot
+    that drives faster turns faster at the same corners; this figure tells whether it also
+    weaves more. NaN without heading or path."""
+    start, end = path_window(rec)
+    yaw = [(t, a) for t, a in rec.truth_yaw if start <= t <= end]
+    truth = truth_in_window(rec)
+    length = float(np.hypot(np.diff(truth[:, 1]), np.diff(truth[:, 2])).sum()) \
+        if len(truth) >= 2 else 0.0
+    if len(yaw) < 2 or not length > 0:
+        return math.nan
+    t, a = zip(*yaw)
+    return mean_abs_angular_velocity_deg(t, a) * (t[-1] - t[0]) / length
+
+
 @dataclass
 class RunFigures:
     name: str                       # e.g. "baseline", "AnyScale seed 1"
@@ -156,6 +172,7 @@ class RunFigures:
     seed: int
     row: RunRow                     # path time, migrations, silences, violations
     mean_omega_deg_s: float = math.nan
+    turning_deg_per_m: float = math.nan
     markers: int = 0
     rms_error_m: float = math.nan
     shares: Dict[str, float] = field(default_factory=dict)
@@ -170,6 +187,7 @@ def run_figures(name: str, kind: str, seed: int, exit_code: int,
     if rec is None:
         return figures
     figures.mean_omega_deg_s = mean_abs_omega_deg_s(rec)
+    figures.turning_deg_per_m = turning_per_metre_deg(rec)
     figures.markers = len(rec.markers_seen)
     errors = pose_errors(rec.truth, rec.estimate)
     figures.rms_error_m = float(np.sqrt(np.mean(errors ** 2))) if errors.size else math.nan

@@ -31,6 +31,7 @@ class Baseline:
     from run to run (the baseline's time to complete varied by 15 % between two runs)."""
     path_time_s: float
     mean_omega_deg_s: float
+    turning_deg_per_m: float
     runs: int
     shortest_s: float
     longest_s: float
@@ -42,6 +43,7 @@ def baseline_of(figures: Sequence[RunFigures]) -> Optional[Baseline]:
         return None
     times = [f.row.path_time_s for f in runs]
     return Baseline(float(np.mean(times)), _nanmean([f.mean_omega_deg_s for f in runs]),
+                    _nanmean([f.turning_deg_per_m for f in runs]),
                     len(runs), min(times), max(times))
 
 
@@ -79,7 +81,8 @@ def _fixed(v: float, unit: str, digits: int = 1) -> str:
 
 def header(topics: Sequence[str]) -> List[str]:
     return (["run", "exit", "time to complete", "gain vs baseline", "coverage bound",
-             "share of bound's gain", "mean |w|", "|w| / baseline", "markers", "AMCL RMS error"]
+             "share of bound's gain", "mean |w|", "|w| / baseline", "turning per m / baseline",
+             "markers", "AMCL RMS error"]
             + [f"{t} longest/Δ" for t in topics]
             + ["violations", "migrations"] + [f"{c} time" for c in CONFIGURATIONS] + ["note"])
 
@@ -94,11 +97,18 @@ def run_cells(f: RunFigures, baseline: Optional[Baseline], topics: Sequence[str]
              _percent(bound_share(f, baseline)) if has_bound else "-",
              _fixed(f.mean_omega_deg_s, " °/s", 2), _fixed(_ratio(f.mean_omega_deg_s, base_omega),
                                                            "", 3),
+             _turning(f.turning_deg_per_m, baseline),
              str(f.markers), _fixed(f.rms_error_m, " m", 3)]
             + [silence_cell(f.row, t) for t in topics]
             + [str(len(f.row.violations)), str(f.row.migrations)]
             + [_percent(f.shares[c]) if f.shares else "-" for c in CONFIGURATIONS]
             + [f.row.note])
+
+
+def _turning(deg_per_m: float, baseline: Optional[Baseline]) -> str:
+    ratio = _ratio(deg_per_m, baseline.turning_deg_per_m if baseline else None)
+    return "-" if not math.isfinite(deg_per_m) else \
+        f"{deg_per_m:.2f} °/m" + (f" ({ratio:.3f})" if math.isfinite(ratio) else "")
 
 
 def _nanmean(values: Sequence[float]) -> float:
@@ -123,6 +133,7 @@ def mean_cells(kind: str, runs: Sequence[RunFigures], baseline: Optional[Baselin
              f"({_percent(_nanmean([bound_gain(f, baseline) for f in runs]))})",
              _percent(_nanmean([bound_share(f, baseline) for f in runs])),
              _fixed(omega, " °/s", 2), _fixed(_ratio(omega, base_omega), "", 3),
+             _turning(_nanmean([f.turning_deg_per_m for f in runs]), baseline),
              _fixed(_nanmean([f.markers for f in runs]), "", 1),
              _fixed(_nanmean([f.rms_error_m for f in runs]), " m", 3)]
             + silences
@@ -158,6 +169,8 @@ def paper_comparison(figures: Sequence[RunFigures]) -> List[str]:
     best = next((f for f in figures if f.kind == "best_case"), None)
     omega = _nanmean([f.mean_omega_deg_s for f in tests])
     above = _ratio(omega, baseline.mean_omega_deg_s if baseline else None) - 1.0
+    turning = _ratio(_nanmean([f.turning_deg_per_m for f in tests]),
+                     baseline.turning_deg_per_m if baseline else None) - 1.0
     highest = max([f.mean_omega_deg_s for f in figures
                    if f.kind in ("baseline", "paper") and math.isfinite(f.mean_omega_deg_s)],
                   default=math.nan)
@@ -173,7 +186,9 @@ def paper_comparison(figures: Sequence[RunFigures]) -> List[str]:
         f"{_percent(_nanmean([bound_share(f, baseline) for f in tests]))} (the paper has no "
         f"bound)",
         f"mean |w| against the baseline: paper about {_percent(PAPER_OMEGA_ABOVE_BASELINE)} "
-        f"above; here {_percent(above)} {'above' if not above < 0 else 'below'}",
+        f"above; here {_percent(above)} {'above' if not above < 0 else 'below'}; turning per "
+        f"metre driven {_percent(turning)} {'above' if not turning < 0 else 'below'} (the same "
+        f"loop driven faster turns faster at the same corners)",
         f"highest mean |w|: limit of safe behaviour {SAFE_OMEGA_DEG_S:g} °/s; here "
         f"{_fixed(highest, ' °/s', 2)}"]
 
@@ -212,7 +227,8 @@ def write_csv(path: str, figures: Sequence[RunFigures]):
         w.writerow(["run", "kind", "seed", "exit_code", "time_to_complete_s",
                     "gain_vs_baseline", "bound_time_s", "bound_gain", "share_of_bound_gain",
                     "driving_mps_amcl_home", "driving_mps_amcl_out",
-                    "mean_abs_omega_deg_s", "omega_ratio_to_baseline", "markers",
+                    "mean_abs_omega_deg_s", "omega_ratio_to_baseline", "turning_deg_per_m",
+                    "turning_ratio_to_baseline", "markers",
                     "amcl_rms_error_m"]
                    + [f"longest_silence_s {t}" for t in topics]
                    + [f"tolerance_s {t}" for t in topics]
@@ -226,6 +242,9 @@ def write_csv(path: str, figures: Sequence[RunFigures]):
                         _number(f.mean_omega_deg_s),
                         _number(_ratio(f.mean_omega_deg_s,
                                        baseline.mean_omega_deg_s if baseline else None)),
+                        _number(f.turning_deg_per_m),
+                        _number(_ratio(f.turning_deg_per_m,
+                                       baseline.turning_deg_per_m if baseline else None)),
                         f.markers, _number(f.rms_error_m)]
                        + [_number(f.row.longest_s.get(t, math.nan)) for t in topics]
                        + [_number(f.row.tolerances.get(t, math.nan)) for t in topics]

@@ -9,8 +9,11 @@ goals and does the whole loop from there, so the link's outages meet the robot a
 moments of its mission. It prints,
 per run, the path time, the migrations, the restarts, the longest silence of each connection's
 output against its tolerance and the violations with their cause (all read from the run's
-record.json), then a total; it writes them to DIR/tolerances.csv and DIR/tolerances.md. A run
-takes about 400 s on the office floor and needs the machine to itself. Run with the workspace
+record.json), then a total, then each kind of move's output gaps (median, p90, worst) beside
+the node's own longest silences in windows of the same length while nothing moves
+(move_gap_report.py); it writes them to DIR/tolerances.csv and DIR/tolerances.md. A run
+takes about 400 s on the office floor and needs the machine to itself. Runs already recorded in
+--out are not run again: an interrupted bench goes on where it stopped. Run with the workspace
 sourced:
     sudo -E /usr/bin/python3 tests/bench/bench_tolerances.py --runs 10
 """
@@ -25,6 +28,7 @@ import yaml
 
 try:
     from anyscale_testbed.bench_runs import latest_record, run_logged, start_on_the_testbed
+    from anyscale_testbed.move_gap_report import move_gap_lines
     from anyscale_testbed.tolerance_report import (format_markdown, format_table, row_cells, run_row,
                                                    topics_of, write_csv)
 except ImportError as e:
@@ -90,22 +94,30 @@ def main(argv=None) -> int:
     os.makedirs(out, exist_ok=True)
     print(f"bench: {args.runs} runs on {args.world}, coverage link, allocator {args.allocator}; "
           f"results in {out}", flush=True)
-    rows = []
+    rows, records = [], []
     try:
         for k in range(args.runs):
             start_goal = (args.first_start + k) % goals
             seed = args.first_seed + k
             run_dir = os.path.join(out, f"run{k + 1:02d}")
-            print(f"[{k + 1}/{args.runs}] start at goal {start_goal}, seed {seed}, log "
-                  f"{run_dir}/console.log", flush=True)
-            began = time.monotonic()
-            code = run_once(args, start_goal, seed, run_dir)
-            rows.append(run_row(k + 1, start_goal, code, latest_record(run_dir), seed))
+            recorded = latest_record(run_dir)
+            if recorded is not None:
+                print(f"[{k + 1}/{args.runs}] recorded already, not run again", flush=True)
+                code, took = 0, "recorded"
+            else:
+                print(f"[{k + 1}/{args.runs}] start at goal {start_goal}, seed {seed}, log "
+                      f"{run_dir}/console.log", flush=True)
+                began = time.monotonic()
+                code = run_once(args, start_goal, seed, run_dir)
+                took = f"done in {time.monotonic() - began:.0f} s"
+                recorded = latest_record(run_dir)
+            rows.append(run_row(k + 1, start_goal, code, recorded, seed))
+            if recorded is not None:
+                records.append((k + 1, recorded))
             cells = row_cells(rows[-1], topics_of(rows))
-            print(f"[{k + 1}/{args.runs}] done in {time.monotonic() - began:.0f} s: exit "
-                  f"{code}, path time {cells[4]}, {rows[-1].migrations} migrations, "
-                  f"{rows[-1].restarts} restarts, {len(rows[-1].violations)} violations",
-                  flush=True)
+            print(f"[{k + 1}/{args.runs}] {took}: exit {code}, path time {cells[4]}, "
+                  f"{rows[-1].migrations} migrations, {rows[-1].restarts} restarts, "
+                  f"{len(rows[-1].violations)} violations", flush=True)
             for v in rows[-1].violations:
                 print(f"    VIOLATION {v.topic} silent {v.silence_s:.2f} s > tolerance "
                       f"{v.tolerance_s:g} s at t={v.start_t:.1f} s: {v.cause}", flush=True)
@@ -113,11 +125,14 @@ def main(argv=None) -> int:
         print("bench: interrupted; the table has the runs that ended", flush=True)
     if not rows:
         return 130
+    gaps = move_gap_lines(records)
     print(format_table(rows), flush=True)
+    print("output gaps per move:\n" + "\n".join("  " + line for line in gaps), flush=True)
     write_csv(os.path.join(out, "tolerances.csv"), rows)
     with open(os.path.join(out, "tolerances.md"), "w") as f:
         f.write(format_markdown(rows, f"Tolerance bench: {len(rows)} runs on {args.world}, "
                                       f"coverage link, allocator {args.allocator}"))
+        f.write("\n## Output gaps per move\n\n" + "".join(f"- {line}\n" for line in gaps))
     print(f"bench: {out}/tolerances.csv and tolerances.md", flush=True)
     return 0 if all(not r.violations for r in rows) else 1
 

@@ -176,7 +176,8 @@ def test_text_markdown_and_csv_copies(tmp_path):
     figures = campaign()
     text = format_table(figures)
     assert "VIOLATION optimal seed 1: /amcl_pose silent 5.0" in text
-    assert text.splitlines()[-7] == "paper vs here:"
+    assert "\npaper vs here:\n" in text
+    assert "left of the coverage bound, by cause:\n  AnyScale seed 1: " in text
     md = format_markdown(figures, "Evaluation")
     assert md.startswith("# Evaluation\n\n| run | exit | time to complete |")
     assert "| AnyScale seed 1 | 0 | 151 s | 24.5 % |" in md

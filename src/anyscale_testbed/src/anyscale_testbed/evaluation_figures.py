@@ -33,6 +33,7 @@ from anyscale_nav_demo.results import (AMCL_ON_LAPTOP, AR_ON_LAPTOP,  # noqa: F4
                                        CONFIGURATIONS, configuration_of,
                                        mean_abs_angular_velocity_deg)
 
+from .evaluation_shortfall import NO_SHORTFALL, Shortfall, shortfall
 from .testbed_record import TestbedRecord, mapping_at, pose_errors
 from .tolerance_report import RunRow, path_time, run_row
 
@@ -113,29 +114,59 @@ def driving_speed(steps: np.ndarray, dt: np.ndarray, where: np.ndarray, default:
     return length / float(dt[where].sum()) if length >= MIN_DRIVEN_M else default
 
 
+@dataclass(frozen=True)
+class PathSteps:
+    """The mission's ground truth as steps between samples, with what held at each start."""
+    t: np.ndarray               # start of each step
+    dt: np.ndarray
+    length: np.ndarray
+    mbps: np.ndarray            # the modelled link's bandwidth
+    carried: np.ndarray         # the link carried AMCL's traffic
+    out: np.ndarray             # AMCL ran off the robot
+    driving: np.ndarray         # faster than MIN_DRIVING_MPS
+    home_mps: float
+    out_mps: float
+
+    def saved_by_moving_out(self) -> np.ndarray:
+        """Per step, the seconds the bound saves there: a driving step with AMCL home where the
+        link carried it, at the speed with AMCL out."""
+        saved = np.zeros(len(self.dt))
+        home_but_carried = self.driving & self.carried & ~self.out
+        saved[home_but_carried] = self.dt[home_but_carried] - \
+            self.length[home_but_carried] / self.out_mps
+        return saved
+
+
+def path_steps(rec: TestbedRecord, amcl_mbps: float, master: str = "robot") -> Optional[PathSteps]:
+    """None where the record has no path or no bandwidth."""
+    truth = truth_in_window(rec)
+    if len(truth) < 2 or not rec.bandwidth:
+        return None
+    dt = np.diff(truth[:, 0])
+    length = np.hypot(np.diff(truth[:, 1]), np.diff(truth[:, 2]))
+    mbps = bandwidth_at_times(rec.bandwidth, truth[:-1, 0])
+    out = np.array([c in AMCL_OUT for c in configurations_along_path(rec, master)[:-1]])
+    driving = length > MIN_DRIVING_MPS * dt
+    return PathSteps(truth[:-1, 0], dt, length, mbps, mbps >= amcl_mbps, out, driving,
+                     driving_speed(length, dt, driving & ~out, SLOW_MPS),
+                     driving_speed(length, dt, driving & out, FAST_MPS))
+
+
 def coverage_bound(rec: TestbedRecord, amcl_mbps: float, master: str = "robot") -> CoverageBound:
     """See the module docstring. NaN figures where the record has no path or no bandwidth, and
     no time where the loop was not completed."""
-    truth = truth_in_window(rec)
-    if len(truth) < 2 or not rec.bandwidth:
+    steps = path_steps(rec, amcl_mbps, master)
+    if steps is None:
         return NO_BOUND
-    dt = np.diff(truth[:, 0])
-    steps = np.hypot(np.diff(truth[:, 1]), np.diff(truth[:, 2]))
-    length = float(steps.sum())
-    if not length > 0:
+    total = float(steps.length.sum())
+    if not total > 0:
         return CoverageBound(0.0, math.nan, math.nan, math.nan, path_time(rec))
-    carried = bandwidth_at_times(rec.bandwidth, truth[:-1, 0]) >= amcl_mbps
-    out = np.array([c in AMCL_OUT for c in configurations_along_path(rec, master)[:-1]])
-    driving = steps > MIN_DRIVING_MPS * dt
-    home_mps = driving_speed(steps, dt, driving & ~out, SLOW_MPS)
-    out_mps = driving_speed(steps, dt, driving & out, FAST_MPS)
-    bound_dt = dt.copy()
-    home_but_carried = driving & carried & ~out
-    bound_dt[home_but_carried] = steps[home_but_carried] / out_mps
-    out_but_not_carried = driving & ~carried & out
-    bound_dt[out_but_not_carried] = steps[out_but_not_carried] / home_mps
-    return CoverageBound(length, float(steps[carried].sum() / length), home_mps, out_mps,
-                         path_time(rec) - float(dt.sum() - bound_dt.sum()))
+    out_but_not_carried = steps.driving & ~steps.carried & steps.out
+    lost = float(np.sum(steps.length[out_but_not_carried] / steps.home_mps
+                        - steps.dt[out_but_not_carried]))
+    return CoverageBound(total, float(steps.length[steps.carried].sum() / total),
+                         steps.home_mps, steps.out_mps,
+                         path_time(rec) - float(steps.saved_by_moving_out().sum()) + lost)
 
 
 def mean_abs_omega_deg_s(rec: TestbedRecord) -> float:
@@ -177,6 +208,7 @@ class RunFigures:
     rms_error_m: float = math.nan
     shares: Dict[str, float] = field(default_factory=dict)
     bound: CoverageBound = NO_BOUND
+    shortfall: Shortfall = NO_SHORTFALL     # what an AnyScale test left of the bound
 
 
 def run_figures(name: str, kind: str, seed: int, exit_code: int,
@@ -193,4 +225,7 @@ def run_figures(name: str, kind: str, seed: int, exit_code: int,
     figures.rms_error_m = float(np.sqrt(np.mean(errors ** 2))) if errors.size else math.nan
     figures.shares = configuration_shares(rec, master)
     figures.bound = coverage_bound(rec, amcl_mbps, master)
+    steps = path_steps(rec, amcl_mbps, master)
+    if steps is not None and kind not in ("baseline", "best_case"):
+        figures.shortfall = shortfall(rec, steps)
     return figures

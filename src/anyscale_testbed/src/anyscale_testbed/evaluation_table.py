@@ -10,6 +10,7 @@ from typing import Dict, List, Optional, Sequence
 import numpy as np
 
 from .evaluation_figures import CONFIGURATIONS, RunFigures
+from .evaluation_shortfall import CAUSES
 from .tolerance_report import silence_cell, topics_of
 
 # The paper's figures (section V): over its four tests, migration cut the time to complete by
@@ -193,6 +194,25 @@ def paper_comparison(figures: Sequence[RunFigures]) -> List[str]:
         f"{_fixed(highest, ' °/s', 2)}"]
 
 
+def shortfall_lines(figures: Sequence[RunFigures]) -> List[str]:
+    """Per AnyScale test, and as a mean per allocator: the seconds it left of the coverage
+    bound by cause, and what its moves out cost (evaluation_shortfall)."""
+    def line(name: str, by_cause: Dict[str, float], moving: float) -> str:
+        causes = ", ".join(f"{c} {by_cause[c]:.1f} s" for c in CAUSES)
+        return (f"{name}: {sum(by_cause.values()):.1f} s ({causes}); moves out under way "
+                f"{moving:.1f} s")
+    lines = []
+    for kind, runs in seeded_kinds(figures).items():
+        judged = [f for f in runs if f.shortfall.by_cause]
+        lines += [line(f.name, f.shortfall.by_cause, f.shortfall.moving_s) for f in judged]
+        if len(judged) > 1:
+            lines.append(line(f"mean {KIND_TITLES.get(kind, kind)}",
+                              {c: _nanmean([f.shortfall.by_cause[c] for f in judged])
+                               for c in CAUSES},
+                              _nanmean([f.shortfall.moving_s for f in judged])))
+    return lines
+
+
 def violation_lines(figures: Sequence[RunFigures]) -> List[str]:
     return [f"{f.name}: {v.topic} silent {v.silence_s:.2f} s > Δ {v.tolerance_s:g} s from "
             f"t={v.start_t:.1f} s: {v.cause}" for f in figures for v in f.row.violations]
@@ -204,6 +224,8 @@ def format_table(figures: Sequence[RunFigures]) -> str:
     text = ["  ".join(c.ljust(w) for c, w in zip(line, widths)).rstrip() for line in lines]
     text += ["VIOLATION " + v for v in violation_lines(figures)]
     text += ["", "paper vs here:"] + ["  " + c for c in paper_comparison(figures)]
+    text += ["", "left of the coverage bound, by cause:"] + \
+        ["  " + c for c in shortfall_lines(figures)]
     return "\n".join(text)
 
 
@@ -213,6 +235,8 @@ def format_markdown(figures: Sequence[RunFigures], title: str) -> str:
     md += ["| " + " | ".join(c.replace("|", "/") for c in line) + " |" for line in lines[1:]]
     md += ["", "## The paper beside this test bed", ""]
     md += [f"- {c}" for c in paper_comparison(figures)]
+    md += ["", "## What the tests left of the coverage bound, by cause", ""]
+    md += [f"- {c}" for c in shortfall_lines(figures)] or ["no AnyScale test"]
     md += ["", "## Violations of a connection's tolerance", ""]
     md += [f"- {v}" for v in violation_lines(figures)] or ["none"]
     return "\n".join(md) + "\n"

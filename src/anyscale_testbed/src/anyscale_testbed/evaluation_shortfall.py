@@ -1,0 +1,95 @@
+"""What an AnyScale test left of the coverage bound, in seconds, by cause (pure, no ROS).
+
+The bound (evaluation_figures.coverage_bound) has AMCL on the laptop wherever the link carries
+its traffic; a test saves less where AMCL stayed home on such a stretch. Each such driving
+step's seconds (its time less its length at the speed with AMCL out) go to the first cause
+that held at its start, in this order:
+- weak link: the link was below weak_link_mbps, where the decision node brings nodes home and
+  lets none out, so that a handover can still cross a link that is about to go;
+- hold after a loss: the link had come back less than hold_after_loss_s before;
+- hysteresis T: the node had come home less than hysteresis_s before (the paper's T);
+- before the first move out: the start-up (the node set coming up, the first bandwidth hold);
+- other: the bandwidth hold before a move out (bandwidth_hold_s), the move's own start, and
+  the link estimate lagging the link.
+Apart from these, the moves out themselves cost time the bound does not remove either: from the
+decision until the new instance publishes and the robot speeds up, the steps mapped out were
+driven at the robot's speed; their seconds against the speed with AMCL out are `moving`.
+The thresholds are robot.launch's defaults, which the evaluation runs with. `steps` are
+evaluation_figures.PathSteps."""
+from dataclasses import dataclass, field
+import math
+from typing import Dict, List
+
+import numpy as np
+
+from .testbed_record import TestbedRecord, link_transitions, move_window
+
+WEAK, HOLD, HYSTERESIS, START, OTHER = ("weak link", "hold after a loss", "hysteresis T",
+                                        "before the first move out", "other")
+CAUSES = (WEAK, HOLD, HYSTERESIS, START, OTHER)
+
+
+@dataclass(frozen=True)
+class PolicyParams:
+    """The decision node's parameters the causes are judged by (robot.launch's defaults)."""
+    weak_link_mbps: float = 5.5
+    hold_after_loss_s: float = 20.0
+    hysteresis_s: float = 10.0
+
+
+@dataclass(frozen=True)
+class Shortfall:
+    # seconds of the bound's saving not made, per cause; empty: not judged (a baseline)
+    by_cause: Dict[str, float] = field(default_factory=dict)
+    moving_s: float = math.nan      # seconds the moves out took before the robot sped up
+
+    @property
+    def total_s(self) -> float:
+        return sum(self.by_cause.values()) if self.by_cause else math.nan
+
+
+NO_SHORTFALL = Shortfall()
+
+
+def _since_last(moments: List[float], t: float) -> float:
+    before = [m for m in moments if m <= t]
+    return t - before[-1] if before else math.inf
+
+
+def step_causes(rec: TestbedRecord, steps: "PathSteps", params: PolicyParams,
+                node: str = "amcl") -> List[str]:
+    """The cause of each step (CAUSES), for every step; meaningful where AMCL stayed home on a
+    carried stretch."""
+    link_back = [t for t, up in link_transitions(rec.bandwidth) if up]
+    moved = [e for e in rec.events if e.node == node and e.success]
+    returns = [e.decided_t for e in moved if e.kind == "migrate_back"]
+    first_out = min([e.decided_t for e in moved if e.kind == "migrate"], default=math.inf)
+    causes = []
+    for t, mbps in zip(steps.t, steps.mbps):
+        if mbps < params.weak_link_mbps:
+            causes.append(WEAK)
+        elif _since_last(link_back, t) < params.hold_after_loss_s:
+            causes.append(HOLD)
+        elif _since_last(returns, t) < params.hysteresis_s:
+            causes.append(HYSTERESIS)
+        elif t < first_out:
+            causes.append(START)
+        else:
+            causes.append(OTHER)
+    return causes
+
+
+def shortfall(rec: TestbedRecord, steps: "PathSteps", params: PolicyParams = PolicyParams(),
+              node: str = "amcl") -> Shortfall:
+    saved = steps.saved_by_moving_out()
+    causes = np.array(step_causes(rec, steps, params, node))
+    by_cause = {c: float(saved[causes == c].sum()) for c in CAUSES}
+    in_move = np.zeros(len(steps.t), dtype=bool)
+    for e in rec.events:
+        if e.node == node and e.kind == "migrate" and e.success:
+            start, end = move_window(e)
+            in_move |= (steps.t >= start) & (steps.t < end)
+    moving = steps.driving & steps.out & in_move
+    moving_s = float(np.sum(np.maximum(steps.dt[moving] - steps.length[moving] / steps.out_mps,
+                                       0.0)))
+    return Shortfall(by_cause, moving_s)

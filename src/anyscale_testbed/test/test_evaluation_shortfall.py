@@ -1,0 +1,49 @@
+"""evaluation_shortfall on a synthetic test: the seconds the run left of the coverage bound go
+to the cause that held at each step, and the moves out cost the seconds until the robot sped
+up."""
+import pytest
+
+from anyscale_testbed.evaluation_figures import path_steps
+from anyscale_testbed.evaluation_shortfall import (HOLD, HYSTERESIS, OTHER, START, WEAK,
+                                                   shortfall)
+from anyscale_testbed.testbed_record import EventRecord, TestbedRecord, mapping_at
+
+AMCL_MBPS = 0.22
+
+
+def on(amcl):
+    return {"amcl": amcl, "ar_recognition": "robot", "navigation": "robot"}
+
+
+def event(decided_t, kind):
+    return EventRecord(t=decided_t + 1.0, kind=kind, node="amcl", from_scale="robot",
+                       to_scale="laptop" if kind == "migrate" else "robot", reason="",
+                       duration_s=1.0, success=True, decided_t=decided_t)
+
+
+def test_each_second_left_goes_to_its_cause():
+    """AMCL out 30-60 s (the robot speeds up to 0.4 m/s 2 s after the decision), home at
+    0.2 m/s otherwise; the link 10 Mbit/s, 3 Mbit/s (weak) 90-100 s, down 100-110 s; the
+    mission 10-150 s."""
+    mappings = [(0.0, on("robot"), 0.0, 0.0), (30.0, on("laptop"), 0.0, 0.0),
+                (60.0, on("robot"), 0.0, 0.0)]
+    rec = TestbedRecord(mappings=mappings)
+    times = [round(0.1 * k, 1) for k in range(0, 1601)]
+    x = [0.0]
+    for t in times[:-1]:
+        fast = mapping_at(rec, t)["amcl"] == "laptop" and t >= 32.0 - 1e-9
+        x.append(x[-1] + 0.1 * (0.4 if fast else 0.2))
+    rec = TestbedRecord(
+        world="small_loop", link="coverage", finished_t=160.0,
+        truth=[(t, xt, 0.0) for t, xt in zip(times, x)], mappings=mappings,
+        bandwidth=[(0.0, 10.0), (90.0, 3.0), (100.0, 0.0), (110.0, 10.0)],
+        navigation_status=[(10.0, "drive 0/4"), (150.0, "done 4/4")],
+        events=[event(30.0, "migrate"), event(60.0, "migrate_back")])
+    steps = path_steps(rec, AMCL_MBPS)
+    left = shortfall(rec, steps)
+    per_s = 1.0 - 0.2 / steps.out_mps        # saved per second driven home at 0.2 m/s
+    expected = {START: 20.0, HYSTERESIS: 10.0, OTHER: 20.0 + 20.0, WEAK: 10.0, HOLD: 20.0}
+    for cause, seconds in expected.items():
+        assert left.by_cause[cause] == pytest.approx(seconds * per_s, abs=0.06), cause
+    # 30-32 s mapped out but driven at 0.2 m/s; 32-34 s already at 0.4 m/s: nothing.
+    assert left.moving_s == pytest.approx(2.0 * per_s, abs=0.06)

@@ -1,5 +1,7 @@
 """move_gap_report on synthetic records: moves sorted by kind with their gaps, and the node's
 own reference taken only where it ran at home with nothing moving nearby."""
+import math
+
 import pytest
 
 from anyscale_testbed.move_gap_report import (LINK_LOSS, OUT, move_gap_lines, move_gaps,
@@ -52,6 +54,19 @@ def test_the_reference_is_home_and_quiet_only():
     # around the move out (97-107 s), the return (197-207 s) and the link changes (196.5-202.5,
     # 227-233 s): starts 10-92 s, 208-222 s and 234-294 s.
     assert len(own) == 42 + 8 + 31
+
+
+def test_the_handover_silence_is_the_one_before_the_new_senders_first_message():
+    rec = record()
+    # The laptop's instance from 100.8 s; the robot's spoke last at 100.0 s (a 0.8 s handover).
+    rec.senders = {"/amcl_pose": [(10.0, "/amcl"), (100.8, "/amcl_laptop"), (201.5, "/amcl")]}
+    gaps = move_gaps(1, rec)
+    assert [round(g.handover_s, 2) for g in gaps] == [0.8, 1.5]
+    assert "the silence before the new instance's first message: median 0.80 s" in \
+        move_gap_lines([(1, rec)])[0]
+    # Recorded before senders were kept: no handover figure, and no such words.
+    assert all(math.isnan(g.handover_s) for g in move_gaps(1, record()))
+    assert "new instance" not in move_gap_lines([(1, record())])[0]
 
 
 def test_lines_name_the_worst_move_and_the_reference():

@@ -3,7 +3,9 @@ moves (pure, no ROS). A move's gap (testbed_record.move_figures) is the longest 
 node's output in the move's window, and a node starved on the robot is silent now and then by
 itself: the reference is the longest silence in windows of the same length, slid over the
 stretches where the node ran at home and no node moved, restarted or lost its link nearby.
-A move whose gaps look like that reference added no silence of its own."""
+A move whose gaps look like that reference added no silence of its own. Where the record names
+each message's sender, the silence right before the new instance's first message is the
+handover's own (testbed_record.handover_silence)."""
 from dataclasses import dataclass
 import math
 from typing import List, Sequence, Tuple
@@ -32,6 +34,7 @@ class MoveGap:
     decided_t: float
     gap_s: float
     window_s: float
+    handover_s: float = math.nan    # testbed_record.handover_silence
 
 
 def move_gaps(run: int, rec: TestbedRecord) -> List[MoveGap]:
@@ -41,7 +44,7 @@ def move_gaps(run: int, rec: TestbedRecord) -> List[MoveGap]:
         if math.isfinite(f.output_gap_s):
             a, b = move_window(f.event)
             found.append(MoveGap(run, f.event.node, move_kind(f.event.kind, f.event.reason),
-                                 f.event.decided_t, f.output_gap_s, b - a))
+                                 f.event.decided_t, f.output_gap_s, b - a, f.handover_s))
     return found
 
 
@@ -95,8 +98,11 @@ def move_gap_lines(records: Sequence[Tuple[int, TestbedRecord]]) -> List[str]:
                 continue
             worst = max(these, key=lambda g: g.gap_s)
             moves = f"{len(these)} move" + ("s" if len(these) != 1 else "")
+            handovers = [g.handover_s for g in these if math.isfinite(g.handover_s)]
+            handover = (f"; the silence before the new instance's first message: "
+                        f"{_stats(handovers)}" if handovers else "")
             lines.append(f"{node} {kind}: {moves}, gap {_stats([g.gap_s for g in these])} "
-                         f"(run {worst.run}, t={worst.decided_t:.1f} s)")
+                         f"(run {worst.run}, t={worst.decided_t:.1f} s){handover}")
         window = float(np.median([g.window_s for g in mine]))
         own = [x for _, rec in records for x in quiet_window_gaps(rec, node, window)]
         if own:

@@ -112,6 +112,7 @@ class TestbedMonitor:
         for topic in sorted(set(self.outputs.values())
                             | {self.pose_topic, self.markers_topic} - {""}):
             self.rec.receipts[topic] = []
+            self.rec.senders[topic] = []
             rospy.Subscriber(topic, rospy.AnyMsg, self._on_output, callback_args=topic,
                              queue_size=50)
         rospy.Subscriber("/anyscale/mapping", MappingMsg, self._on_mapping, queue_size=5)
@@ -130,8 +131,13 @@ class TestbedMonitor:
     # --- callbacks ------------------------------------------------------------------------------
     def _on_output(self, msg, topic):
         now = self.now()
+        # rospy puts the sending connection's header on each message it delivers.
+        sender = getattr(msg, "_connection_header", {}).get("callerid", "")
         with self.lock:
             self.rec.receipts[topic].append(now)
+            senders = self.rec.senders[topic]
+            if not senders or senders[-1][1] != sender:
+                senders.append((now, sender))
         if topic == self.pose_topic:
             # One rospy subscription per topic and process: the pose comes out of the raw one.
             # At its stamp, not its arrival: after a partition heals, TCP may still deliver a

@@ -53,6 +53,9 @@ class TestbedRecord:
     mappings: List[Tuple[float, Dict[str, str], float, float]] = field(default_factory=list)
     events: List[EventRecord] = field(default_factory=list)
     receipts: Dict[str, List[float]] = field(default_factory=dict)    # topic -> receive times
+    # topic -> (receive time, sending node) of each message whose sender differs from the one
+    # before it: the instances' names tell the robot's from the laptop's (a move's handover).
+    senders: Dict[str, List[Tuple[float, str]]] = field(default_factory=dict)
     truth: List[Tuple[float, float, float]] = field(default_factory=list)     # t, x, y
     estimate: List[Tuple[float, float, float]] = field(default_factory=list)  # AMCL's t, x, y
     bandwidth: List[Tuple[float, float]] = field(default_factory=list)  # t, modelled Mbit/s
@@ -219,6 +222,20 @@ class MoveFigures:
     first_output_s: float      # decision -> first message on the output topic afterwards
     silent_since_t: float = math.nan    # the output was already silent when the move was
                                         # decided, since then (a silence this move does not own)
+    handover_s: float = math.nan        # the silence before the first message of another
+                                        # sender in the move's window (handover_silence)
+
+
+def handover_silence(rec: TestbedRecord, topic: str, start: float, end: float) -> float:
+    """The silence that ended with the first message from a new sender within [start, end]:
+    from the last message before it (of any sender) to it. 0-ish when the old instance still
+    published as the new one began (make before break). NaN if the record names no senders
+    (recorded before they were kept) or no new sender spoke in the window."""
+    changes = [t for t, _ in rec.senders.get(topic, []) if start <= t <= end]
+    if not changes:
+        return math.nan
+    before = [t for t in rec.receipts.get(topic, []) if t < changes[0]]
+    return changes[0] - before[-1] if before else math.nan
 
 
 def move_window(e: EventRecord) -> Tuple[float, float]:
@@ -244,15 +261,16 @@ def move_figures(rec: TestbedRecord, outputs: Dict[str, str]) -> List[MoveFigure
         if window_end > end:
             figures[id(e)] = MoveFigures(e, math.nan, first)
             continue
+        handover = handover_silence(rec, topic, start, window_end)
         overlapping = silences_overlapping(times, start, window_end)
         taken = owned.setdefault(topic, set())
         mine = [(a, b) for a, b in overlapping if a >= start - MOVE_LEAD_S and a not in taken]
         taken.update(a for a, _ in mine)
         if overlapping[0] in mine:
             gap = max(b - a for a, b in mine)
-            figures[id(e)] = MoveFigures(e, gap, first)
+            figures[id(e)] = MoveFigures(e, gap, first, handover_s=handover)
         else:   # what follows in its window is the output coming back, not this move's gap
-            figures[id(e)] = MoveFigures(e, math.nan, first, overlapping[0][0])
+            figures[id(e)] = MoveFigures(e, math.nan, first, overlapping[0][0], handover)
     return [figures[id(e)] for e in moves]
 
 

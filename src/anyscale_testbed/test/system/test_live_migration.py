@@ -109,6 +109,18 @@ def test_1_good_link_moves_amcl_then_ar_to_the_laptop(run, phases):
                                               "amcl": "laptop", "ar_recognition": "laptop"}
 
 
+def test_1_the_record_names_each_handover_of_amcl_pose(run, phases):
+    """The record keeps which instance sent /amcl_pose (the handover's silence of a move comes
+    from it): the robot's, the laptop's after the move out, the robot's after the loss."""
+    _, down_at, up_at = phases
+    out = min(e.decided_t for e in moves(run, "migrate", "amcl"))
+    senders = run.senders["/amcl_pose"]
+    first = senders[0][1]
+    laptop = [name for t, name in senders if out <= t < down_at and name != first]
+    assert laptop, senders
+    assert any(name == first for t, name in senders if down_at <= t <= up_at + 5.0), senders
+
+
 def test_2_bandwidth_below_ars_need_brings_ar_back_and_amcl_stays(run, phases):
     weak_at, down_at, _ = phases
     back = [e for e in moves(run, "migrate_back") if weak_at <= e.decided_t < down_at]

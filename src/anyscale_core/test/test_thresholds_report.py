@@ -42,6 +42,26 @@ def test_a_run_as_json_and_as_text():
     assert lines[-1] == "relay.yaml: not changed (--dry-run)"
 
 
+def test_a_tolerance_not_measured_is_said_and_left_in_the_model(tmp_path):
+    """The subscriber did not work again after the failed rate step: no interruption tried."""
+    steps = relay_run().steps[:3]
+    why = "relay did not work again within 60 s at 5 Hz after the incorrect step at 2 Hz"
+    found = thresholds(steps, [], QUOTA, 0.1, unmeasured=why)
+    run = ThresholdsRun("talker", "relay", "/chatter", 10.004, "script `ok` every 1 s", QUOTA,
+                        steps, found)
+    assert summary_line(found) == f"freq_min 5 Hz, freq_opt 5 Hz, tolerance not measured: {why}"
+    report = run.as_json(written=True)
+    assert report["tolerance"] is None and report["tolerance_unmeasured"] == why
+    model = tmp_path / "relay_model.yaml"
+    shutil.copy(RELAY_MODEL, model)
+    write_into_model(str(model), run, "2026-11-24 12:10")
+    connection = next(c for c in yaml.safe_load(model.read_text())["connections"]
+                      if c["subscriber"] == "relay")
+    assert (connection["freq_min"], connection["freq_opt"], connection["tolerance"]) == \
+        (5, 5, 2)                               # the model's tolerance (2 s) kept
+    assert "tolerance not measured: relay did not work again" in model.read_text()
+
+
 def test_written_into_the_connection_with_every_other_line_kept(tmp_path):
     model = tmp_path / "relay_model.yaml"
     shutil.copy(RELAY_MODEL, model)

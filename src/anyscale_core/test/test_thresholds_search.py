@@ -81,6 +81,10 @@ def test_tolerance_is_the_longest_correct_interruption():
     th = thresholds([step(10, 10), step(5, 10)], outs, 0.95, 0.1)
     assert (th.freq_min, th.freq_opt, th.tolerance) == (5, 5, 2)
     assert th.freq_min_is_upper_bound and not th.tolerance_is_lower_bound
+    # No interruption tried (the subscriber did not recover): no tolerance, and why.
+    th = thresholds([step(10, 10), step(5, 2)], [], 0.95, 0.1, unmeasured="lost")
+    assert th.tolerance is None and th.tolerance_unmeasured == "lost"
+    assert thresholds([step(10, 10)], outs, 0.95, 0.1, unmeasured="x").tolerance_unmeasured == ""
     assert outage_ladder([2, 0.5, 2]) == [0.5, 2.0]
     with pytest.raises(ModelError):
         outage_ladder([0])
@@ -108,6 +112,8 @@ def test_subscriber_remaps_feed_the_throttled_topic():
 def test_prediction_and_description():
     assert predict_seconds(3, [1, 2], settle_s=5, step_s=20, start_s=15) == \
         15 + 3 * 25 + (5 + 1 + 20) + (5 + 2 + 20)
+    assert predict_seconds(3, [1, 2], settle_s=5, step_s=20, start_s=15, recover_s=60) == \
+        15 + 3 * 25 + 60 + (5 + 1 + 20) + (5 + 2 + 20)
     text = describe_step(StepResult(5.0, 2.0, 9, 10, 0.1, 4.8), 0.95)
     assert text.startswith("2 s without messages (at 5 Hz): delivered 4.80 Hz; probe passed 9 "
                            "of 10, mean value 0.1: NOT correct")

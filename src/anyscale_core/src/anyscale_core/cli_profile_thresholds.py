@@ -79,7 +79,12 @@ def add_thresholds_parser(sub):
                     "seconds (shortest\nfirst), and the probe is watched from the cut until "
                     "--step seconds after it. A step is\ncorrect when at least --quota of the "
                     "probe's checks pass. Each ladder stops at its first\nincorrect step "
-                    "(the subscriber's state is suspect after it).\n\n"
+                    "(the subscriber's state is suspect after it). After an incorrect rate\n"
+                    "step the stream runs at freq_opt again and the probe is watched, --step "
+                    "seconds at a\ntime, until a window is correct; the interruptions are "
+                    "judged only on a subscriber\nthat recovered within --recover seconds "
+                    "(AMCL lost at 1 Hz may stay lost), else the\ntolerance is reported as "
+                    "not measured and left as it is in MODEL.\n\n"
                     "The probe is a topic and a condition (--probe TOPIC --condition EXPR: one "
                     "check per\nmessage; EXPR is Python over the message m, as in "
                     "`rostopic echo --filter`; --value EXPR\nadds a number to minimise, e.g. "
@@ -123,6 +128,9 @@ def add_thresholds_parser(sub):
     add_seconds(th, "--settle", 5.0, "seconds at a new rate, or after an interruption's "
                                      "recovery, before the probe counts")
     add_seconds(th, "--step", 20.0, "seconds the probe is watched per step")
+    add_seconds(th, "--recover", 60.0, "after an incorrect rate step: seconds the subscriber "
+                                       "has to work again at freq_opt before the "
+                                       "interruptions")
     th.add_argument("--quota", type=float, default=0.95, metavar="SHARE",
                     help="share of the probe's checks that must pass (default: 0.95)")
     th.add_argument("--improvement", type=float, default=0.1, metavar="SHARE",

@@ -1,6 +1,7 @@
 """`anyscale thresholds`, what it reports (pure, no ROS): the steps and the thresholds found as
 text or JSON, and freq_min, freq_opt and the tolerance written into the model's connection with
-a comment block saying how they were found (every other byte of the file kept)."""
+a comment block saying how they were found (every other byte of the file kept; a tolerance
+that was not measured is left as it was)."""
 from dataclasses import dataclass
 from typing import List, Sequence
 
@@ -37,6 +38,7 @@ class ThresholdsRun:
                 "freq_min": found.freq_min, "freq_opt": found.freq_opt,
                 "tolerance": found.tolerance,
                 "tolerance_is_lower_bound": found.tolerance_is_lower_bound,
+                "tolerance_unmeasured": found.tolerance_unmeasured,
                 "freq_min_is_upper_bound": found.freq_min_is_upper_bound, "written": written}
 
     def text_lines(self, model_path: str, written: bool) -> List[str]:
@@ -52,10 +54,13 @@ class ThresholdsRun:
 def summary_line(found: Thresholds) -> str:
     low = " (every rate tried was correct: it may be lower)" if found.freq_min_is_upper_bound \
         else ""
-    tol = " (every interruption tried was correct: at least this)" \
-        if found.tolerance_is_lower_bound else ""
-    return (f"freq_min {found.freq_min:g} Hz{low}, freq_opt {found.freq_opt:g} Hz, tolerance "
-            f"{found.tolerance:g} s{tol}")
+    if found.tolerance is None:
+        tolerance = f"tolerance not measured: {found.tolerance_unmeasured or 'no interruption'}"
+    else:
+        tol = " (every interruption tried was correct: at least this)" \
+            if found.tolerance_is_lower_bound else ""
+        tolerance = f"tolerance {found.tolerance:g} s{tol}"
+    return f"freq_min {found.freq_min:g} Hz{low}, freq_opt {found.freq_opt:g} Hz, {tolerance}"
 
 
 def write_into_model(path: str, run: ThresholdsRun, when: str):
@@ -66,8 +71,9 @@ def write_into_model(path: str, run: ThresholdsRun, when: str):
     index = connection_index(read_yaml(path), run.pub, run.sub, run.topic)
     item = ("connections", index)
     numbers = [NumberEdit(item + ("freq_min",), run.found.freq_min),
-               NumberEdit(item + ("freq_opt",), run.found.freq_opt),
-               NumberEdit(item + ("tolerance",), run.found.tolerance)]
+               NumberEdit(item + ("freq_opt",), run.found.freq_opt)]
+    if run.found.tolerance is not None:     # not measured: the model's own value stays
+        numbers.append(NumberEdit(item + ("tolerance",), run.found.tolerance))
     lines = (f"{when} by `anyscale thresholds`: {run.topic} ({run.source_hz:.2f} Hz) through "
              f"topic_tools throttle into {run.sub}; probe {run.probe}, correct when "
              f"{run.quota:.0%} of its checks pass;", summary_line(run.found))

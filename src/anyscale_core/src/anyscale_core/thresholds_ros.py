@@ -258,7 +258,7 @@ def run(args) -> int:
                                    args.connection)
         ladder = rate_ladder(source_hz, args.rates)
         predicted = predict_seconds(len(ladder), outages, args.settle, args.step,
-                                    SET_UP_ESTIMATE_S)
+                                    SET_UP_ESTIMATE_S, args.recover)
         say(f"anyscale thresholds: {pub} -> {sub} on {topic}, source {source_hz:.2f} Hz; rates "
             f"{', '.join(f'{r:g}' for r in ladder)} Hz, then interruptions of "
             f"{', '.join(f'{d:g}' for d in outages)} s; probe {probe.description}; at most "
@@ -270,15 +270,20 @@ def run(args) -> int:
         probe.connect(progress.tick)
         step_rates(chain, probe, arrivals, progress, args, sub, source_hz, ladder, rate_steps)
         at = thresholds(rate_steps, [], args.quota, args.improvement).freq_opt
-        if not rate_steps[-1].correct(args.quota):
-            # Known limit: a stateful subscriber (AMCL) may still be lost from the failed step;
-            # a fresh start would need a state to start from that is not stale.
-            progress.write(f"  warning: the interruptions follow an incorrect step at "
-                           f"{rate_steps[-1].rate_hz:g} Hz; if {sub} keeps state, give --rates "
-                           "that stop above its failure to judge them on a working subscriber")
         chain.set_rate(source_hz, at)
-        step_outages(chain, probe, arrivals, progress, args, at, outages, outage_steps)
-        found = thresholds(rate_steps, outage_steps, args.quota, args.improvement)
+        unmeasured = ""
+        if not rate_steps[-1].correct(args.quota) and \
+                not recover(probe, arrivals, progress, args, at):
+            # A stateful subscriber (AMCL) may stay lost after the failed step, and a fresh
+            # start would need a state to start from that is not stale: interruptions judged
+            # on it would say nothing of the connection.
+            unmeasured = (f"{sub} did not work again within {args.recover:g} s at {at:g} Hz "
+                          f"after the incorrect step at {rate_steps[-1].rate_hz:g} Hz; give "
+                          "--rates that stop above it")
+            progress.write(f"  {unmeasured}")
+        else:
+            step_outages(chain, probe, arrivals, progress, args, at, outages, outage_steps)
+        found = thresholds(rate_steps, outage_steps, args.quota, args.improvement, unmeasured)
     finally:
         for listener in (arrivals, probe):
             if listener is not None:
@@ -362,6 +367,22 @@ def step_rates(chain: Chain, probe, arrivals: ArrivalLog, progress: TimeProgress
                                f"{rate:g} Hz ({passed} of {checks} checks of "
                                f"{probe.description}): check the probe, and that "
                                f"{sub} works unthrottled")
+
+
+def recover(probe, arrivals: ArrivalLog, progress: TimeProgress, args, at: float) -> bool:
+    """After an incorrect rate step, the stream back at `at` Hz: whether a probe window of
+    --step seconds is correct again within --recover seconds."""
+    deadline = time.monotonic() + args.recover
+    while True:
+        progress.phase(f"{at:g} Hz: waiting for the subscriber to work again")
+        passed, checks, value, delivered, _ = _watch(probe, arrivals, progress,
+                                                     [(args.step, None)])
+        window = StepResult(at, 0.0, passed, checks, value, delivered)
+        progress.write("  recovering: " + describe_step(window, args.quota))
+        if window.correct(args.quota):
+            return True
+        if time.monotonic() + args.step > deadline:
+            return False
 
 
 def step_outages(chain: Chain, probe, arrivals: ArrivalLog, progress: TimeProgress, args,

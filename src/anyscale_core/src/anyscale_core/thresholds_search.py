@@ -7,7 +7,9 @@ source's own rate in the steps throttle can deliver (source / k, see rate_ladder
 subscriber's state after a failed step is suspect: AMCL lost at 1 Hz stays lost when the rate
 comes back, so the ladder stops at the first failure rather than trying lower rates on a broken
 system); the interruptions go up from short to long, each after the stream has run at freq_opt
-again, and stop at the first failure for the same reason.
+again, and stop at the first failure for the same reason. After a failed rate step they are
+tried only once the subscriber works again at freq_opt (a probe window correct within
+--recover); else the tolerance is not measured rather than judged on a broken system.
 
 A probe gives, per step, how many of its checks passed: a topic probe one check per message
 (the condition, a Python expression over `m` as in `rostopic echo --filter`), a script probe
@@ -154,6 +156,7 @@ class Thresholds:
     tolerance: Optional[float]
     tolerance_is_lower_bound: bool      # every interruption tried was correct
     freq_min_is_upper_bound: bool       # every rate tried was correct: it may be lower still
+    tolerance_unmeasured: str = ""      # why no interruption was tried, if none was
 
 
 def score_of(step: StepResult) -> float:
@@ -196,16 +199,19 @@ def find_tolerance(results: Sequence[StepResult], quota: float) -> Tuple[Optiona
 
 
 def thresholds(rate_steps: Sequence[StepResult], outage_steps: Sequence[StepResult],
-               quota: float, improvement: float) -> Thresholds:
+               quota: float, improvement: float, unmeasured: str = "") -> Thresholds:
+    """`unmeasured`: why the interruptions were not tried (then the tolerance is None)."""
     freq_min, freq_opt, all_rates = find_rates(rate_steps, quota, improvement)
     tolerance, all_outages = find_tolerance(outage_steps, quota)
-    return Thresholds(freq_min, freq_opt, tolerance, all_outages, all_rates)
+    return Thresholds(freq_min, freq_opt, tolerance, all_outages, all_rates,
+                      unmeasured if not outage_steps else "")
 
 
 def predict_seconds(rates: int, outages: Sequence[float], settle_s: float, step_s: float,
-                    start_s: float) -> float:
-    """At most: the set-up, every rung of both ladders (a failure ends a ladder early)."""
-    return (start_s + rates * (settle_s + step_s)
+                    start_s: float, recover_s: float = 0.0) -> float:
+    """At most: the set-up, every rung of both ladders (a failure ends a ladder early) and
+    the wait for the subscriber to recover from an incorrect rate step."""
+    return (start_s + rates * (settle_s + step_s) + recover_s
             + sum(settle_s + d + step_s for d in outages))
 
 

@@ -50,9 +50,14 @@ def test_the_summary_counts_the_moves_and_names_each_restart():
     rec = TestbedRecord(events=[event(10.0), event(20.0, kind="migrate_back", reason="link down"),
                                 event(30.0, kind="restart", reason="signal 11 on laptop")],
                         finished_t=42.0, receipts={"/amcl_pose": [9.8, 11.2, 20.9, 30.8]})
+    rec.senders = {"/amcl_pose": [(9.8, "/amcl"), (11.2, "/amcl_laptop"), (20.9, "/amcl")]}
     text = format_summary(rec, {"amcl": "/amcl_pose"}, {"/amcl_pose": 2.0})
     assert "migrations: 1 out, 1 back, 0 failed" in text
     assert "restarted amcl at t=30.0 s: signal 11 on laptop" in text
+    # The move out: the handover is the silence from 9.8 s to the laptop's first message at
+    # 11.2 s; its output gap, the longest in its window, the one from 11.2 to 20.9 s.
+    row = next(line for line in text.splitlines() if line.strip().startswith("10.0"))
+    assert row.split()[7:11] == ["9.70", "s", "1.40", "s"], row
 
 
 def ticks(start, end, period=0.2):

@@ -323,7 +323,9 @@ def colour_violations(line: str, terminal: bool) -> str:
 
 def format_summary(rec: TestbedRecord, outputs: Dict[str, str],
                    tolerances: Dict[str, float]) -> str:
-    """The end-of-run table: moves, gaps, localisation, link."""
+    """The end-of-run table: moves, gaps, localisation, link. A move's output gap is the longest
+    silence of the node's output in its window; its handover, the silence right before the new
+    instance's first message (handover_silence)."""
     lines = [f"=== AnyScale test-bed run: world {rec.world}, link {rec.link}, "
              f"{(rec.finished_t or _last_time(rec)):.0f} s"]
     moves = [e for e in rec.events if e.kind in ("migrate", "migrate_back")]
@@ -336,15 +338,15 @@ def format_summary(rec: TestbedRecord, outputs: Dict[str, str],
     figures = move_figures(rec, outputs)
     if figures:
         lines.append(f"  {'t [s]':>7}  {'node':<16} {'move':<20} {'registered':>10} "
-                     f"{'output gap':>10}  reason")
+                     f"{'output gap':>10} {'handover':>9}  reason")
         for f in figures:
             e = f.event
             since = (f"; output silent since t={f.silent_since_t:.1f} s, before this move"
                      if math.isfinite(f.silent_since_t) else "")
             lines.append(f"  {e.decided_t:7.1f}  {e.node:<16} "
                          f"{e.from_scale + ' -> ' + e.to_scale:<20} "
-                         f"{_seconds(e.duration_s):>10} {_seconds(f.output_gap_s):>10}  "
-                         f"{e.reason}{since}")
+                         f"{_seconds(e.duration_s):>10} {_seconds(f.output_gap_s):>10} "
+                         f"{_seconds(f.handover_s):>9}  {e.reason}{since}")
     end = rec.finished_t or _last_time(rec)
     for topic, tol in sorted(tolerances.items()):
         times = rec.receipts.get(topic, [])

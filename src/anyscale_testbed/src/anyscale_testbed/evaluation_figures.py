@@ -18,9 +18,10 @@ link does not carry it but AMCL was out takes its length at the speed with AMCL 
 other step, and every turn and stop, takes what it took. Measured speeds, not the premise's
 0.2 and 0.4 m/s: the starved robot's speed varies from run to run (0.19-0.28 m/s with every
 node home), and a bound at the premise's speeds was beaten by runs that drove faster at home
-than the baseline did (102 % of its gain). The recorded bandwidth is a function of the place (coverage,
-shadowing along the path) and of the time (interference episodes): the bound keeps each
-episode where this run met it. evaluation_table states its gain against the baseline.
+than the baseline did (102 % of its gain). The recorded bandwidth is a function of the place
+(coverage, shadowing along the path) and of the time (interference episodes): the bound keeps
+each episode where this run met it. evaluation_table states its gain against the baseline;
+evaluation_shortfall.py splits what a test left of it by cause.
 """
 from dataclasses import dataclass, field
 import math

@@ -73,10 +73,11 @@ def add_thresholds_parser(sub):
                     "The subscriber is restarted by this command with its input remapped to "
                     "TOPIC_throttle,\nwhich `topic_tools throttle messages TOPIC RATE "
                     "TOPIC_throttle` feeds. Step by step,\nhighest rate first (the source's "
-                    "rate times 1, 0.8, 0.6, 0.5, 0.4, 0.3, 0.2, 0.1, or\n--rates), the "
-                    "stream runs --settle seconds, then the probe is watched for --step\n"
-                    "seconds. Then, at freq_opt, the stream is cut for each of --outages "
-                    "seconds (shortest\nfirst), and the probe is watched from the cut until "
+                    "rate divided by 1, 2, 3, 4, 5, 6, 8, 10: what throttle\ncan deliver from a "
+                    "periodic source; or the nearest of those to --rates), the stream\nruns "
+                    "--settle seconds, then the probe is watched for --step seconds.\nThen, at "
+                    "freq_opt, the stream is cut for each of --outages seconds (shortest\n"
+                    "first), and the probe is watched from the cut until "
                     "--step seconds after it. A step is\ncorrect when at least --quota of the "
                     "probe's checks pass. Each ladder stops at its first\nincorrect step "
                     "(the subscriber's state is suspect after it). After an incorrect rate\n"
@@ -122,7 +123,8 @@ def add_thresholds_parser(sub):
                          "freq_opt is where its mean stops improving")
     add_seconds(th, "--probe-period", 1.0, "with --probe-script: seconds between runs")
     th.add_argument("--rates", type=number_list, metavar="HZ,...",
-                    help="rates to try (default: the source's rate x 1, 0.8, ..., 0.1)")
+                    help="rates to try, each taken as the nearest source rate / k (default: "
+                         "the source's rate / 1, 2, 3, 4, 5, 6, 8, 10)")
     th.add_argument("--outages", type=number_list, metavar="S,...",
                     help="interruptions to try, s (default: 0.5,1,2,3,5,8)")
     add_seconds(th, "--settle", 5.0, "seconds at a new rate, or after an interruption's "

@@ -51,8 +51,10 @@ def parse_args(argv):
     p.add_argument("--first-seed", type=int, default=11, metavar="S",
                    help="run k has the WiFi variation's seed S + k (S = 11: the evaluation's "
                         "tests use 1-4)")
-    p.add_argument("--duration", type=float, default=0.0,
-                   help="end each run after this many seconds (default: when the loop is done)")
+    p.add_argument("--duration", type=float, default=1200.0,
+                   help="end each run when its loop is done, or after this many seconds "
+                        "(1200: an office-floor loop takes 400-600 s; a robot that is stuck "
+                        "does not hold the bench for ever, and its run counts as not done)")
     p.add_argument("--out", default=None,
                    help="results directory (default: results/bench_tolerances/<date-time>)")
     args = p.parse_args(argv)

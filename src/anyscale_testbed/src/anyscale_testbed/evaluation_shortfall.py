@@ -18,11 +18,14 @@ The thresholds are robot.launch's defaults, which the evaluation runs with. `ste
 evaluation_figures.PathSteps."""
 from dataclasses import dataclass, field
 import math
-from typing import Dict, List
+from typing import TYPE_CHECKING, Dict, List
 
 import numpy as np
 
 from .testbed_record import TestbedRecord, link_transitions, move_window
+
+if TYPE_CHECKING:       # evaluation_figures imports this module for its RunFigures
+    from .evaluation_figures import PathSteps
 
 WEAK, HOLD, HYSTERESIS, START, OTHER = ("weak link", "hold after a loss", "hysteresis T",
                                         "before the first move out", "other")

@@ -12,7 +12,8 @@ from typing import List, Sequence, Tuple
 
 import numpy as np
 
-from .testbed_record import TestbedRecord, link_transitions, mapping_at, move_figures, move_window
+from .testbed_record import (TestbedRecord, gap_during, link_transitions, mapping_at,
+                             move_figures, move_window)
 
 # Kinds of move: a planned move out, a planned move back, a return forced by a link loss.
 OUT, BACK, LINK_LOSS = "planned out", "planned back", "link-loss return"
@@ -61,7 +62,7 @@ def quiet_window_gaps(rec: TestbedRecord, node: str, window_s: float,
                       master: str = "robot") -> List[float]:
     """The longest silence of `node`'s output in each window of window_s (slid by half of it)
     within navigation's mission, with the node at home and nothing busy nearby."""
-    times = np.asarray(sorted(rec.receipts.get(rec.outputs.get(node, ""), [])), dtype=float)
+    times = sorted(rec.receipts.get(rec.outputs.get(node, ""), []))
     if len(times) < 2 or not rec.navigation_status or not window_s > 0:
         return []
     busy = busy_spans(rec)
@@ -72,11 +73,7 @@ def quiet_window_gaps(rec: TestbedRecord, node: str, window_s: float,
             continue
         if mapping_at(rec, start).get(node, master) != master:
             continue
-        inside = times[(times >= start) & (times <= end)]
-        before, after = times[times < start], times[times > end]
-        edges = np.concatenate([before[-1:], inside, after[:1]])
-        if len(edges) >= 2:
-            longest.append(float(np.max(np.diff(edges))))
+        longest.append(gap_during(times, start, end))
     return longest
 
 

@@ -6,6 +6,7 @@ import pytest
 
 from anyscale_nav_demo.floor_plan import make_loop_floor
 from anyscale_nav_demo.particle_filter import (BeamLikelihood, LikelihoodField, ParticleFilter,
+                                               jump_beyond_odometry,
                                                kld_sample_count, moved_enough, sample_motion_diff,
                                                systematic_resample)
 from anyscale_nav_demo.raycast import cast_rays
@@ -186,3 +187,12 @@ def test_update_is_due_after_enough_motion_or_turn():
     assert moved_enough(start, (1.0, 2.0, 0.44), 0.05, 0.05)        # turned back 0.06 rad
     # Across the +-pi seam a small turn stays small.
     assert not moved_enough((0.0, 0.0, math.pi - 0.01), (0.0, 0.0, -math.pi + 0.01), 0.05, 0.05)
+
+
+def test_a_jump_is_what_the_estimate_moved_beyond_odometry():
+    assert jump_beyond_odometry(None, (5.0, 5.0, 0.0), 0.0) == 0.0
+    # Tracking: the estimate follows odometry.
+    assert jump_beyond_odometry((5.8, 22.1, -1.6), (5.8, 22.0, -1.6), 0.1) == pytest.approx(0.0)
+    # The bench's run 9: 10.4 m in one update while odometry moved 0.1 m.
+    assert jump_beyond_odometry((5.81, 22.01, -1.6), (15.35, 26.15, 0.0), 0.1) == \
+        pytest.approx(math.hypot(9.54, 4.14) - 0.1)

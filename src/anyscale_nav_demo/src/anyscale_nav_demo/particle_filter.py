@@ -135,6 +135,14 @@ def moved_enough(odom_before, odom_now, min_distance, min_angle):
             or abs(math.remainder(b[2] - a[2], 2 * math.pi)) >= min_angle)
 
 
+def jump_beyond_odometry(last_pose, pose, odom_moved):
+    """How much farther (m) the estimate moved between two updates than odometry did; 0 for
+    the first estimate (last_pose None)."""
+    if last_pose is None:
+        return 0.0
+    return math.hypot(pose[0] - last_pose[0], pose[1] - last_pose[1]) - odom_moved
+
+
 def kld_sample_count(k, err, z, n_min, n_max):
     """Particles needed so the KL divergence to the true posterior stays below err (Fox 2003).
 

@@ -1,10 +1,13 @@
-"""The premise bench's figures from synthetic records: rates and speeds per configuration."""
+"""The premise bench's figures from synthetic records: rates and speeds per configuration, the
+figures with every node home and the flag of a run off the premise."""
 import math
 
 import pytest
 
-from anyscale_testbed.premise_figures import (configuration_name, format_markdown,
-                                              premise_figures)
+from anyscale_testbed.premise_figures import (PREMISE_AMCL_HZ, PREMISE_MARGIN_HZ,
+                                              configuration_name,
+                                              figures_with_every_node_home, format_markdown,
+                                              premise_figures, premise_is_off, premise_off_note)
 from anyscale_testbed.testbed_record import TestbedRecord
 
 ROBOT = {"amcl": "robot", "ar_recognition": "robot"}
@@ -58,3 +61,30 @@ def test_cruise_ignores_standing_still_and_markdown_has_every_row():
     text = format_markdown([{"quota": "0.33", "case": "robot", **row}])
     assert text.count("\n") == 3 and "| 0.33 | robot | amcl@robot ar@robot |" in text
     assert not math.isnan(row["cruise_speed"])
+
+
+def test_the_figures_with_every_node_home_are_that_configurations_row():
+    poses = [30 + 0.5 * i for i in range(60)] + [60 + 0.2 * i for i in range(200)]
+    rec = TestbedRecord(mappings=[(0.0, ROBOT, 0.0, 0.0), (60.0, LAPTOP, 0.0, 0.0)],
+                        receipts={"/amcl_pose": poses},
+                        truth=straight_line([((0, 60), 0.2), ((60, 100), 0.4)]),
+                        finished_t=100.0)
+    home = figures_with_every_node_home(rec, skip_s=30.0)
+    assert home["configuration"] == configuration_name(ROBOT)
+    assert home["amcl_hz"] == pytest.approx(2.0) and home["cruise_speed"] == pytest.approx(
+        0.2, abs=0.01)
+    # Never home (or no mapping recorded): nothing to check.
+    out = TestbedRecord(mappings=[(0.0, LAPTOP, 0.0, 0.0)], receipts={"/amcl_pose": poses},
+                        truth=rec.truth, finished_t=100.0)
+    assert figures_with_every_node_home(out, skip_s=30.0) is None
+    assert figures_with_every_node_home(TestbedRecord(), skip_s=30.0) is None
+
+
+def test_a_run_is_off_the_premise_beyond_the_margin_either_way():
+    assert (PREMISE_AMCL_HZ, PREMISE_MARGIN_HZ) == (2.0, 0.5)
+    for on_premise in (2.0, 1.6, 2.4, 2.5, 1.5, math.nan):
+        assert not premise_is_off(on_premise) and premise_off_note(on_premise) == ""
+    for off in (2.6, 3.04, 1.4, 5.0):
+        assert premise_is_off(off)
+    assert premise_off_note(3.04) == "premise off: AMCL 3.0 Hz at home"
+    assert premise_off_note(1.2) == "premise off: AMCL 1.2 Hz at home"

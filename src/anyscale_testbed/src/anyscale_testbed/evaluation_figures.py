@@ -1,6 +1,7 @@
 """The paper's evaluation figures of one test-bed run, read from its record (pure, no ROS): time
 to complete, mean |omega|, markers, AMCL's error, share of time in each of Fig. 5's four
-configurations, and the coverage bound (the time the best possible allocator could reach on
+configurations, AMCL's rate and the robot's cruise speed with every node home (the premise,
+premise_figures.py), and the coverage bound (the time the best possible allocator could reach on
 the coverage this run met). evaluation_table.py lays them out against the baseline and the
 paper; evaluation_plots.py draws Fig. 5 and Fig. 6 from them.
 
@@ -35,6 +36,7 @@ from anyscale_nav_demo.results import (AMCL_ON_LAPTOP, AR_ON_LAPTOP,  # noqa: F4
                                        mean_abs_angular_velocity_deg)
 
 from .evaluation_shortfall import NO_SHORTFALL, Shortfall, shortfall
+from .premise_figures import figures_with_every_node_home
 from .testbed_record import TestbedRecord, mapping_at, pose_errors
 from .tolerance_report import RunRow, path_time, run_row
 
@@ -203,6 +205,8 @@ class RunFigures:
     kind: str                       # baseline, paper, paper_local, optimal, best_case
     seed: int
     row: RunRow                     # path time, migrations, silences, violations
+    # The seed of the interleaved pair (a baseline, then its test) this run belongs to; 0: none.
+    pair: int = 0
     mean_omega_deg_s: float = math.nan
     turning_deg_per_m: float = math.nan
     markers: int = 0
@@ -210,13 +214,15 @@ class RunFigures:
     shares: Dict[str, float] = field(default_factory=dict)
     bound: CoverageBound = NO_BOUND
     shortfall: Shortfall = NO_SHORTFALL     # what an AnyScale test left of the bound
+    amcl_hz_home: float = math.nan          # with every node on the robot (the premise)
+    cruise_mps_home: float = math.nan
 
 
 def run_figures(name: str, kind: str, seed: int, exit_code: int,
                 rec: Optional[TestbedRecord], amcl_mbps: float,
-                master: str = "robot") -> RunFigures:
+                master: str = "robot", pair: int = 0) -> RunFigures:
     """A run's figures; without a record only its exit code and a note."""
-    figures = RunFigures(name, kind, seed, run_row(0, 0, exit_code, rec))
+    figures = RunFigures(name, kind, seed, run_row(0, 0, exit_code, rec), pair)
     if rec is None:
         return figures
     figures.mean_omega_deg_s = mean_abs_omega_deg_s(rec)
@@ -226,6 +232,9 @@ def run_figures(name: str, kind: str, seed: int, exit_code: int,
     figures.rms_error_m = float(np.sqrt(np.mean(errors ** 2))) if errors.size else math.nan
     figures.shares = configuration_shares(rec, master)
     figures.bound = coverage_bound(rec, amcl_mbps, master)
+    home = figures_with_every_node_home(rec)
+    if home is not None:
+        figures.amcl_hz_home, figures.cruise_mps_home = home["amcl_hz"], home["cruise_speed"]
     steps = path_steps(rec, amcl_mbps, master)
     if steps is not None and kind not in ("baseline", "best_case"):
         figures.shortfall = shortfall(rec, steps)

@@ -1,5 +1,6 @@
 """The evaluation's figures and table, from synthetic test-bed records: the coverage bound,
-Fig. 5's configurations, mean |w|, the gains against the baseline, the paper beside them."""
+Fig. 5's configurations, mean |w|, the gains against the baseline and against each test's
+paired baseline, the premise flag, the paper beside them."""
 import csv
 import math
 
@@ -11,8 +12,11 @@ from anyscale_testbed.evaluation_figures import (AMCL_ON_LAPTOP, AR_ON_LAPTOP, B
                                                  configurations_along_path, coverage_bound,
                                                  mean_abs_omega_deg_s, run_figures,
                                                  turning_per_metre_deg)
-from anyscale_testbed.evaluation_table import (baseline_of, format_markdown, format_table,
-                                               gain, paper_comparison, table_lines, write_csv)
+from anyscale_testbed.evaluation_table import (baseline_of, bound_share, format_markdown,
+                                               format_table, gain, paired_baseline,
+                                               paired_bound_share, paired_gain,
+                                               paired_gain_spread, paper_comparison,
+                                               spread_of, table_lines, write_csv)
 from anyscale_testbed.testbed_record import TestbedRecord, mapping_at, tolerance_violations
 
 AMCL_MBPS = 0.22
@@ -23,12 +27,13 @@ def on(amcl="robot", ar="robot"):
 
 
 def record(done_t=110.0, speed=0.3, yaw_rate=0.05, link_until=60.0, mappings=None,
-           amcl_gap=None, out_speed=None):
+           amcl_gap=None, out_speed=None, amcl_hz=5.0):
     """Navigation from t=10 to done_t; the robot drives east at `speed` (at `out_speed` while
-    AMCL is on the laptop, if given) turning at `yaw_rate` rad/s; the link up at 10 Mbit/s
-    until `link_until`, then down."""
+    AMCL is on the laptop, if given) turning at `yaw_rate` rad/s; AMCL's pose at `amcl_hz`;
+    the link up at 10 Mbit/s until `link_until`, then down."""
     times = [round(0.1 * k, 1) for k in range(0, 2501)]
-    amcl = [t for t in times[::2] if amcl_gap is None or not amcl_gap[0] < t < amcl_gap[1]]
+    amcl = [t for t in (round(k / amcl_hz, 3) for k in range(int(250 * amcl_hz) + 1))
+            if amcl_gap is None or not amcl_gap[0] < t < amcl_gap[1]]
     mappings = mappings if mappings is not None else [
         (5.0, on(), 0.0, 0.0), (30.0, on(amcl="laptop"), 0.0, 0.0), (60.0, on(), 0.0, 0.0)]
     x = [0.0]
@@ -163,13 +168,17 @@ def test_the_paper_beside_ours():
     lines = paper_comparison(campaign())[1:]
     assert lines[0] == "mean gain of the AnyScale tests: paper 28.0 % over 4 tests; here 24.2 % " \
                        "over 2"
-    assert lines[1] == "best case (the network everywhere): paper 50.0 %; here 50.0 %"
-    assert lines[2].startswith("share of the coverage bound's gain reached: here 67.9 %")
+    # No test of the campaign is in a pair.
+    assert lines[1] == ("paired gain of the AnyScale tests (each against the baseline run just "
+                        "before it): no pair with both runs complete")
+    assert lines[2] == "best case (the network everywhere): paper 50.0 %; here 50.0 %"
+    assert lines[3].startswith("share of the coverage bound's gain reached: here 67.9 %, "
+                               "against the paired baselines - (the paper has no bound)")
     # The tests' robot drives faster with AMCL out, turning at the same rate: less per metre.
-    assert lines[3] == ("mean |w| against the baseline: paper about 5.0 % above; here 0.0 % "
+    assert lines[4] == ("mean |w| against the baseline: paper about 5.0 % above; here 0.0 % "
                         "above; turning per metre driven -16.5 % below (the same loop driven "
                         "faster turns faster at the same corners)")
-    assert lines[4] == "highest mean |w|: limit of safe behaviour 4 °/s; here 2.86 °/s"
+    assert lines[5] == "highest mean |w|: limit of safe behaviour 4 °/s; here 2.86 °/s"
 
 
 def test_text_markdown_and_csv_copies(tmp_path):
@@ -190,3 +199,116 @@ def test_text_markdown_and_csv_copies(tmp_path):
     assert float(rows[1]["gain_vs_baseline"]) == pytest.approx(1 - 151 / 200)
     assert rows[1]["bound_gain"] == "0.3587" and rows[4]["time_to_complete_s"] == ""
     assert rows[1]["time_share AMCL on laptop"] == "0.1987" and rows[1]["markers"] == "4"
+
+
+def pairs():
+    """Interleaved pairs (baseline, then its test) beside a grouped baseline of another day
+    (300 s): pair 1 200 s then 151 s, pair 2 180 s then 165 s, pair 3's baseline did not
+    complete, pair 4's baseline is not recorded, pair 5's test is not recorded (230 s)."""
+    def base(pair, done_t):
+        return run_figures(f"pair {pair}: baseline", "baseline", 0, 0,
+                           record(done_t=done_t, mappings=[]), AMCL_MBPS, pair=pair)
+
+    def test(pair, done_t):
+        return run_figures(f"pair {pair}: AnyScale", "paper", pair, 0,
+                           record(done_t=done_t, link_until=10.0 + (150.0 + pair) / 2,
+                                  out_speed=0.6), AMCL_MBPS, pair=pair)
+    old = run_figures("baseline", "baseline", 0, 0, record(done_t=310.0, mappings=[]),
+                      AMCL_MBPS)
+    return [old, base(1, 210.0), test(1, 161.0), base(2, 190.0), test(2, 175.0),
+            base(3, None), test(3, 160.0), test(4, 160.0), base(5, 240.0)]
+
+
+def test_each_test_is_measured_against_its_own_paired_baseline():
+    figures = pairs()
+    _, b1, t1, b2, t2, b3, t3, t4, b5 = figures
+    assert paired_baseline(t1, figures).path_time_s == pytest.approx(200.0)
+    assert paired_gain(t1, figures) == pytest.approx(1 - 151 / 200)
+    assert paired_gain(t2, figures) == pytest.approx(1 - 165 / 180)
+    # Against the mean of every baseline that completed (300, 200, 180, 230 s: 227.5 s).
+    assert gain(t2, baseline_of(figures)) == pytest.approx(1 - 165 / 227.5)
+    # A baseline that did not complete, one not recorded: no paired gain, not 0.
+    assert paired_baseline(t3, figures) is None and math.isnan(paired_gain(t3, figures))
+    assert paired_baseline(t4, figures) is None and math.isnan(paired_gain(t4, figures))
+    # A baseline has no paired gain of its own, nor has a run outside any pair.
+    assert math.isnan(paired_gain(b1, figures)) and math.isnan(paired_gain(figures[0], figures))
+    # The share of the coverage bound uses the paired baseline for both gains.
+    assert paired_bound_share(t1, figures) == pytest.approx(
+        bound_share(t1, baseline_of([b1])))
+    assert paired_bound_share(t1, figures) == pytest.approx(
+        (1 - 151 / 200) / (1 - (151 - 22.75) / 200))
+    assert not paired_bound_share(t1, figures) == pytest.approx(
+        bound_share(t1, baseline_of(figures)))
+
+
+def test_the_paired_gains_mean_and_spread_count_only_complete_pairs():
+    figures = pairs()
+    tests = [f for f in figures if f.kind == "paper"]
+    spread = paired_gain_spread(tests, figures)
+    one, two = 1 - 151 / 200, 1 - 165 / 180
+    assert spread.count == 2
+    assert spread.mean == pytest.approx((one + two) / 2)
+    assert spread.sd == pytest.approx(abs(one - two) / math.sqrt(2))
+    assert (spread.lowest, spread.highest) == (pytest.approx(two), pytest.approx(one))
+    lone = spread_of([0.1, math.nan])
+    assert lone.count == 1 and lone.mean == pytest.approx(0.1) and math.isnan(lone.sd)
+    assert spread_of([]).count == 0 and math.isnan(spread_of([]).mean)
+
+
+def test_the_table_and_csv_show_the_paired_gain_beside_the_gain_against_the_mean(tmp_path):
+    figures = pairs()
+    lines = table_lines(figures)
+    head = lines[0]
+    rows = {line[0]: dict(zip(head, line)) for line in lines[1:]}
+    t1 = rows["pair 1: AnyScale"]
+    assert (t1["gain vs baseline"], t1["gain vs paired baseline"]) == ("33.6 %", "24.5 %")
+    assert t1["share of bound's gain vs paired"] == "68.3 %"
+    assert rows["pair 3: AnyScale"]["gain vs paired baseline"] == "-"
+    assert rows["pair 1: baseline"]["gain vs paired baseline"] == "-"
+    mean = rows["mean AnyScale (paper), 4 tests"]
+    assert mean["gain vs paired baseline"] == "16.4 % (sd 11.4 %, 8.3 to 24.5 %, 2 pairs)"
+    assert paper_comparison(figures)[2] == (
+        "paired gain of the AnyScale tests (each against the baseline run just before it): "
+        "16.4 % (sd 11.4 %, 8.3 to 24.5 %, 2 pairs)")
+    write_csv(str(tmp_path / "e.csv"), figures)
+    with open(tmp_path / "e.csv") as f:
+        csv_rows = {r["run"]: r for r in csv.DictReader(f)}
+    assert csv_rows["pair 1: AnyScale"]["pair"] == "1" and csv_rows["baseline"]["pair"] == "0"
+    assert csv_rows["pair 1: AnyScale"]["gain_vs_paired_baseline"] == "0.2450"
+    assert csv_rows["pair 1: AnyScale"]["gain_vs_baseline"] == "0.3363"
+    assert csv_rows["pair 1: AnyScale"]["share_of_bound_gain_vs_paired"] == "0.6829"
+    assert csv_rows["pair 4: AnyScale"]["gain_vs_paired_baseline"] == ""
+
+
+def test_a_run_off_the_premise_at_home_is_flagged_in_the_table_and_the_csv(tmp_path):
+    home = [(0.0, on(), 0.0, 0.0)]
+    fast = run_figures("baseline, run 2", "baseline", 0, 0,
+                       record(done_t=210.0, mappings=home, amcl_hz=3.0), AMCL_MBPS)
+    calibrated = run_figures("baseline, run 3", "baseline", 0, 0,
+                             record(done_t=210.0, mappings=home, amcl_hz=2.0), AMCL_MBPS)
+    assert fast.amcl_hz_home == pytest.approx(3.0, abs=0.01)
+    assert fast.cruise_mps_home == pytest.approx(0.3, abs=0.01)
+    out = run_figures("always out", "best_case", 0, 0,
+                      record(mappings=[(0.0, on("laptop", "laptop"), 0.0, 0.0)]), AMCL_MBPS)
+    figures = campaign() + [fast, calibrated, out]
+    lines = table_lines(figures)
+    rows = {line[0]: dict(zip(lines[0], line)) for line in lines[1:]}
+    assert rows["baseline, run 2"]["AMCL at home"] == "3.00 Hz"
+    assert rows["baseline, run 2"]["cruise at home"] == "0.30 m/s"
+    assert rows["baseline, run 2"]["note"] == "premise off: AMCL 3.0 Hz at home"
+    assert rows["baseline, run 3"]["AMCL at home"] == "2.00 Hz"
+    assert rows["baseline, run 3"]["note"] == ""
+    # A run without every node home has nothing to check: no flag.
+    assert rows["always out"]["AMCL at home"] == "-" and rows["always out"]["note"] == ""
+    # A note of the run's own stays, the flag joins it.
+    broken = rows["optimal seed 1"]
+    assert broken["note"] == "the loop was not completed; premise off: AMCL 5.0 Hz at home"
+    assert "| baseline, run 2 |" in format_markdown(figures, "E")
+    assert "premise off: AMCL 3.0 Hz at home" in format_markdown(figures, "E")
+    write_csv(str(tmp_path / "e.csv"), figures)
+    with open(tmp_path / "e.csv") as f:
+        csv_rows = {r["run"]: r for r in csv.DictReader(f)}
+    assert csv_rows["baseline, run 2"]["premise_off"] == "1"
+    assert csv_rows["baseline, run 3"]["premise_off"] == "0"
+    assert csv_rows["always out"]["premise_off"] == ""
+    assert csv_rows["baseline, run 2"]["amcl_hz_every_node_home"] == "3.0000"

@@ -1,7 +1,13 @@
 """The evaluation's table (scripts/run_evaluation.py): one row per run and a mean row per
 allocator over its seeded tests, against the baseline (every node on the robot), beside the
 paper's figures (section V, Fig. 6); aligned text, Markdown and CSV. Pure (no ROS): it lays
-out evaluation_figures.RunFigures."""
+out evaluation_figures.RunFigures.
+
+Two baselines: the mean of every baseline run, and for a test run in an interleaved pair its
+own paired baseline, the baseline run measured just before it. This machine is a shared VM
+whose speed drifts over hours and days (baselines of different days took 361-583 s), so only
+the paired gain compares runs measured side by side. Each run also shows AMCL's rate with every
+node home and is flagged where that is off the premise (premise_figures.py)."""
 import csv
 import math
 from dataclasses import dataclass
@@ -11,6 +17,7 @@ import numpy as np
 
 from .evaluation_figures import CONFIGURATIONS, RunFigures
 from .evaluation_shortfall import CAUSES
+from .premise_figures import premise_is_off, premise_off_note
 from .tolerance_report import silence_cell, topics_of
 
 # The paper's figures (section V): over its four tests, migration cut the time to complete by
@@ -72,6 +79,64 @@ def bound_share(f: RunFigures, baseline: Optional[Baseline]) -> float:
     return _ratio(gain(f, baseline), reachable if reachable > 0 else None)
 
 
+def paired_baseline(f: RunFigures, figures: Sequence[RunFigures]) -> Optional[Baseline]:
+    """The baseline of f's pair: the baseline run of the same pair, measured just before f.
+    None for a run outside a pair, for a pair's baseline itself, and where the pair's baseline
+    is not recorded or did not complete."""
+    if not f.pair or f.kind == "baseline":
+        return None
+    return baseline_of([b for b in figures if b.kind == "baseline" and b.pair == f.pair])
+
+
+def paired_gain(f: RunFigures, figures: Sequence[RunFigures]) -> float:
+    """1 - time to complete / its paired baseline's (NaN without one, or where f did not
+    complete)."""
+    return gain(f, paired_baseline(f, figures))
+
+
+def paired_bound_share(f: RunFigures, figures: Sequence[RunFigures]) -> float:
+    """The share of the coverage bound's gain reached, both against the paired baseline."""
+    return bound_share(f, paired_baseline(f, figures))
+
+
+@dataclass(frozen=True)
+class Spread:
+    """Mean, sample standard deviation and range of the finite values among some (NaN where
+    there are too few: none, or one for the deviation)."""
+    mean: float
+    sd: float
+    lowest: float
+    highest: float
+    count: int
+
+
+def spread_of(values: Sequence[float]) -> Spread:
+    finite = [v for v in values if math.isfinite(v)]
+    if not finite:
+        return Spread(math.nan, math.nan, math.nan, math.nan, 0)
+    return Spread(float(np.mean(finite)),
+                  float(np.std(finite, ddof=1)) if len(finite) > 1 else math.nan,
+                  min(finite), max(finite), len(finite))
+
+
+def paired_gain_spread(tests: Sequence[RunFigures], figures: Sequence[RunFigures]) -> Spread:
+    """Of the tests' paired gains (the pairs with both runs complete)."""
+    return spread_of([paired_gain(f, figures) for f in tests])
+
+
+def _spread_cell(s: Spread) -> str:
+    if not s.count:
+        return "-"
+    sd = f"sd {_percent(s.sd)}, " if math.isfinite(s.sd) else ""
+    return (f"{_percent(s.mean)} ({sd}{100 * s.lowest:.1f} to {100 * s.highest:.1f} %, "
+            f"{s.count} pair{'s' if s.count > 1 else ''})")
+
+
+def note_cell(f: RunFigures) -> str:
+    """The run's note, and the premise flag where its AMCL ran off the premise at home."""
+    return "; ".join(n for n in (f.row.note, premise_off_note(f.amcl_hz_home)) if n)
+
+
 def _percent(v: float) -> str:
     return "-" if not math.isfinite(v) else f"{100 * v:.1f} %"
 
@@ -81,21 +146,26 @@ def _fixed(v: float, unit: str, digits: int = 1) -> str:
 
 
 def header(topics: Sequence[str]) -> List[str]:
-    return (["run", "exit", "time to complete", "gain vs baseline", "coverage bound",
-             "share of bound's gain", "mean |w|", "|w| / baseline", "turning per m / baseline",
-             "markers", "AMCL RMS error"]
+    return (["run", "exit", "time to complete", "gain vs baseline", "gain vs paired baseline",
+             "coverage bound", "share of bound's gain", "share of bound's gain vs paired",
+             "AMCL at home", "cruise at home", "mean |w|", "|w| / baseline",
+             "turning per m / baseline", "markers", "AMCL RMS error"]
             + [f"{t} longest/Δ" for t in topics]
             + ["violations", "migrations"] + [f"{c} time" for c in CONFIGURATIONS] + ["note"])
 
 
-def run_cells(f: RunFigures, baseline: Optional[Baseline], topics: Sequence[str]) -> List[str]:
+def run_cells(f: RunFigures, baseline: Optional[Baseline], topics: Sequence[str],
+              figures: Sequence[RunFigures] = ()) -> List[str]:
+    """One run's row; `figures` (every run) holds its paired baseline."""
     base_omega = baseline.mean_omega_deg_s if baseline else None
     has_bound = f.kind not in ("baseline", "best_case")
     bound = (f"{f.bound.time_s:.0f} s ({_percent(bound_gain(f, baseline))})"
              if has_bound and math.isfinite(f.bound.time_s) else "-")
     return ([f.name, str(f.row.exit_code), _fixed(f.row.path_time_s, " s", 0),
-             _percent(gain(f, baseline)), bound,
+             _percent(gain(f, baseline)), _percent(paired_gain(f, figures)), bound,
              _percent(bound_share(f, baseline)) if has_bound else "-",
+             _percent(paired_bound_share(f, figures)) if has_bound else "-",
+             _fixed(f.amcl_hz_home, " Hz", 2), _fixed(f.cruise_mps_home, " m/s", 2),
              _fixed(f.mean_omega_deg_s, " °/s", 2), _fixed(_ratio(f.mean_omega_deg_s, base_omega),
                                                            "", 3),
              _turning(f.turning_deg_per_m, baseline),
@@ -103,7 +173,7 @@ def run_cells(f: RunFigures, baseline: Optional[Baseline], topics: Sequence[str]
             + [silence_cell(f.row, t) for t in topics]
             + [str(len(f.row.violations)), str(f.row.migrations)]
             + [_percent(f.shares[c]) if f.shares else "-" for c in CONFIGURATIONS]
-            + [f.row.note])
+            + [note_cell(f)])
 
 
 def _turning(deg_per_m: float, baseline: Optional[Baseline]) -> str:
@@ -118,8 +188,9 @@ def _nanmean(values: Sequence[float]) -> float:
 
 
 def mean_cells(kind: str, runs: Sequence[RunFigures], baseline: Optional[Baseline],
-               topics: Sequence[str]) -> List[str]:
-    """The mean over one allocator's seeded tests (of the runs that have each figure)."""
+               topics: Sequence[str], figures: Sequence[RunFigures] = ()) -> List[str]:
+    """The mean over one allocator's seeded tests (of the runs that have each figure); the
+    paired gains' with their spread."""
     base_omega = baseline.mean_omega_deg_s if baseline else None
     omega = _nanmean([f.mean_omega_deg_s for f in runs])
     silences = []
@@ -130,9 +201,13 @@ def mean_cells(kind: str, runs: Sequence[RunFigures], baseline: Optional[Baselin
     return ([f"mean {KIND_TITLES.get(kind, kind)}, {len(runs)} tests", "",
              _fixed(_nanmean([f.row.path_time_s for f in runs]), " s", 0),
              _percent(_nanmean([gain(f, baseline) for f in runs])),
+             _spread_cell(paired_gain_spread(runs, figures)),
              f"{_fixed(_nanmean([f.bound.time_s for f in runs]), ' s', 0)} "
              f"({_percent(_nanmean([bound_gain(f, baseline) for f in runs]))})",
              _percent(_nanmean([bound_share(f, baseline) for f in runs])),
+             _percent(_nanmean([paired_bound_share(f, figures) for f in runs])),
+             _fixed(_nanmean([f.amcl_hz_home for f in runs]), " Hz", 2),
+             _fixed(_nanmean([f.cruise_mps_home for f in runs]), " m/s", 2),
              _fixed(omega, " °/s", 2), _fixed(_ratio(omega, base_omega), "", 3),
              _turning(_nanmean([f.turning_deg_per_m for f in runs]), baseline),
              _fixed(_nanmean([f.markers for f in runs]), "", 1),
@@ -157,8 +232,8 @@ def table_lines(figures: Sequence[RunFigures]) -> List[List[str]]:
     """Header, a row per run, then a mean row per allocator."""
     topics = topics_of([f.row for f in figures])
     baseline = baseline_of(figures)
-    lines = [header(topics)] + [run_cells(f, baseline, topics) for f in figures]
-    lines += [mean_cells(k, runs, baseline, topics)
+    lines = [header(topics)] + [run_cells(f, baseline, topics, figures) for f in figures]
+    lines += [mean_cells(k, runs, baseline, topics, figures)
               for k, runs in seeded_kinds(figures).items()]
     return lines
 
@@ -172,6 +247,7 @@ def paper_comparison(figures: Sequence[RunFigures]) -> List[str]:
     above = _ratio(omega, baseline.mean_omega_deg_s if baseline else None) - 1.0
     turning = _ratio(_nanmean([f.turning_deg_per_m for f in tests]),
                      baseline.turning_deg_per_m if baseline else None) - 1.0
+    paired = paired_gain_spread(tests, figures)
     highest = max([f.mean_omega_deg_s for f in figures
                    if f.kind in ("baseline", "paper") and math.isfinite(f.mean_omega_deg_s)],
                   default=math.nan)
@@ -181,11 +257,14 @@ def paper_comparison(figures: Sequence[RunFigures]) -> List[str]:
         "baseline: none recorded",
         f"mean gain of the AnyScale tests: paper {_percent(PAPER_MEAN_GAIN)} over 4 tests; "
         f"here {_percent(_nanmean([gain(f, baseline) for f in tests]))} over {len(tests)}",
+        f"paired gain of the AnyScale tests (each against the baseline run just before it): "
+        f"{_spread_cell(paired) if paired.count else 'no pair with both runs complete'}",
         f"best case (the network everywhere): paper {_percent(PAPER_BEST_CASE_GAIN)}; here "
         f"{_percent(gain(best, baseline)) if best else '-'}",
         f"share of the coverage bound's gain reached: here "
-        f"{_percent(_nanmean([bound_share(f, baseline) for f in tests]))} (the paper has no "
-        f"bound)",
+        f"{_percent(_nanmean([bound_share(f, baseline) for f in tests]))}, against the paired "
+        f"baselines {_percent(_nanmean([paired_bound_share(f, figures) for f in tests]))} (the "
+        f"paper has no bound)",
         f"mean |w| against the baseline: paper about {_percent(PAPER_OMEGA_ABOVE_BASELINE)} "
         f"above; here {_percent(above)} {'above' if not above < 0 else 'below'}; turning per "
         f"metre driven {_percent(turning)} {'above' if not turning < 0 else 'below'} (the same "
@@ -243,14 +322,17 @@ def format_markdown(figures: Sequence[RunFigures], title: str) -> str:
 
 
 def write_csv(path: str, figures: Sequence[RunFigures]):
-    """One line per run, plain numbers (seconds, fractions 0..1, °/s, m); empty = unknown."""
+    """One line per run, plain numbers (seconds, fractions 0..1, Hz, m/s, °/s, m); empty =
+    unknown; premise_off 1 where AMCL ran off the premise at home."""
     topics = topics_of([f.row for f in figures])
     baseline = baseline_of(figures)
     with open(path, "w", newline="") as out:
         w = csv.writer(out)
-        w.writerow(["run", "kind", "seed", "exit_code", "time_to_complete_s",
-                    "gain_vs_baseline", "bound_time_s", "bound_gain", "share_of_bound_gain",
+        w.writerow(["run", "kind", "seed", "pair", "exit_code", "time_to_complete_s",
+                    "gain_vs_baseline", "gain_vs_paired_baseline", "bound_time_s", "bound_gain",
+                    "share_of_bound_gain", "bound_gain_vs_paired", "share_of_bound_gain_vs_paired",
                     "driving_mps_amcl_home", "driving_mps_amcl_out",
+                    "amcl_hz_every_node_home", "cruise_mps_every_node_home", "premise_off",
                     "mean_abs_omega_deg_s", "omega_ratio_to_baseline", "turning_deg_per_m",
                     "turning_ratio_to_baseline", "markers",
                     "amcl_rms_error_m"]
@@ -259,10 +341,16 @@ def write_csv(path: str, figures: Sequence[RunFigures]):
                    + ["violations", "migrations"]
                    + [f"time_share {c}" for c in CONFIGURATIONS] + ["note"])
         for f in figures:
-            w.writerow([f.name, f.kind, f.seed, f.row.exit_code, _number(f.row.path_time_s),
-                        _number(gain(f, baseline)), _number(f.bound.time_s),
+            paired = paired_baseline(f, figures)
+            w.writerow([f.name, f.kind, f.seed, f.pair, f.row.exit_code,
+                        _number(f.row.path_time_s), _number(gain(f, baseline)),
+                        _number(gain(f, paired)), _number(f.bound.time_s),
                         _number(bound_gain(f, baseline)), _number(bound_share(f, baseline)),
+                        _number(bound_gain(f, paired)), _number(bound_share(f, paired)),
                         _number(f.bound.home_mps), _number(f.bound.out_mps),
+                        _number(f.amcl_hz_home), _number(f.cruise_mps_home),
+                        "" if not math.isfinite(f.amcl_hz_home) else
+                        int(premise_is_off(f.amcl_hz_home)),
                         _number(f.mean_omega_deg_s),
                         _number(_ratio(f.mean_omega_deg_s,
                                        baseline.mean_omega_deg_s if baseline else None)),
@@ -274,7 +362,7 @@ def write_csv(path: str, figures: Sequence[RunFigures]):
                        + [_number(f.row.tolerances.get(t, math.nan)) for t in topics]
                        + [len(f.row.violations), f.row.migrations]
                        + [_number(f.shares.get(c, math.nan)) for c in CONFIGURATIONS]
-                       + [f.row.note])
+                       + [note_cell(f)])
 
 
 def _number(v: float) -> str:

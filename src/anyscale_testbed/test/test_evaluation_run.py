@@ -1,5 +1,6 @@
-"""The evaluation runner without a test bed: its plan, --runs and --seeds, resuming from the
-runs recorded, and the table and figures it writes (each run faked by a synthetic record)."""
+"""The evaluation runner without a test bed: its plan in either order, --runs and --seeds,
+resuming from the runs recorded (also under the other order's keys), and the table and figures
+it writes (each run faked by a synthetic record)."""
 import os
 
 import numpy as np
@@ -9,12 +10,13 @@ from anyscale_testbed import evaluation_run
 from anyscale_testbed.evaluation_figures import AMCL_ON_LAPTOP, BOTH_ON_ROBOT
 from anyscale_nav_demo.results import configuration_runs
 from anyscale_testbed.evaluation_run import (amcl_bandwidth_mbps, evaluation_plan, parse_args,
-                                             parse_seeds, select_runs)
+                                             parse_seeds, run_of_key, runs_to_collect,
+                                             select_runs)
 from test_evaluation_table import record
 
 
-def test_the_plan_is_baselines_seeded_tests_per_allocator_and_best_case():
-    plan = evaluation_plan([1, 2, 3, 4])
+def test_the_grouped_plan_is_baselines_seeded_tests_per_allocator_and_best_case():
+    plan = evaluation_plan([1, 2, 3, 4], "grouped")
     assert [r.key for r in plan] == (
         ["baseline", "baseline-2"] + [f"{a}-seed{s}" for a in ("paper", "paper_local", "optimal")
                                       for s in (1, 2, 3, 4)] + ["best_case"])
@@ -23,12 +25,64 @@ def test_the_plan_is_baselines_seeded_tests_per_allocator_and_best_case():
     assert plan[-1].argv == ["--link", "schedule", "--schedule", "[[0, 27]]"]
     assert plan[7].argv == ["--link", "coverage", "--seed", "2", "--allocator", "paper_local"]
     assert plan[2].title == "AnyScale, seed 1" and plan[6].title == "AnyScale paper_local, seed 1"
-    assert [r.key for r in evaluation_plan([1], baseline_runs=3)[:3]] == [
+    assert [r.key for r in evaluation_plan([1], "grouped", baseline_runs=3)[:3]] == [
         "baseline", "baseline-2", "baseline-3"]
+    assert all(r.pair == 0 for r in plan)
+
+
+def test_the_paired_plan_runs_each_seeds_baseline_just_before_its_test():
+    plan = evaluation_plan([1, 2, 3, 4])
+    assert [r.key for r in plan] == (
+        [k for s in (1, 2, 3, 4) for k in (f"pair{s}-baseline", f"pair{s}-paper")]
+        + [f"{a}-seed{s}" for a in ("paper_local", "optimal") for s in (1, 2, 3, 4)]
+        + ["best_case"])
+    baseline, test = plan[2], plan[3]
+    assert (baseline.kind, baseline.pair, test.kind, test.pair, test.seed) == (
+        "baseline", 2, "paper", 2, 2)
+    assert baseline.argv == ["--link", "schedule", "--schedule", "[[0, 0]]"]
+    assert test.argv == ["--link", "coverage", "--seed", "2", "--allocator", "paper"]
+    assert (baseline.title, test.title) == ("pair 2: baseline (no migration)",
+                                            "pair 2: AnyScale, seed 2")
+    assert plan[8].pair == 0 and plan[8].title == "AnyScale paper_local, seed 1"
+    # Any seeds: the pairs follow them; --baseline-runs does not count here.
+    assert [r.key for r in evaluation_plan([3, 1], "paired", baseline_runs=5)[:4]] == [
+        "pair3-baseline", "pair3-paper", "pair1-baseline", "pair1-paper"]
+    with pytest.raises(ValueError, match="--order"):
+        evaluation_plan([1], "interleaved")
+
+
+def test_keys_of_either_order_name_their_run_and_nothing_else_does():
+    for key in ("baseline", "baseline-6", "paper-seed2", "paper_local-seed3", "optimal-seed4",
+                "best_case", "pair1-baseline", "pair12-paper"):
+        assert run_of_key(key).key == key
+    assert run_of_key("baseline-6").title == "baseline (no migration), run 6"
+    assert run_of_key("baseline-6").pair == 0 and run_of_key("pair12-paper").pair == 12
+    for other in ("baseline-1", "baseline-0", "paper-seed0", "paper-seed01", "pair0-paper",
+                  "pair1-optimal", "bestcase", "fig5", "baseline-2x", ""):
+        assert run_of_key(other) is None, other
+
+
+def test_results_recorded_in_the_grouped_order_still_load_beside_the_paired_plan():
+    plan = evaluation_plan([1, 2])
+    recorded = ["paper-seed2", "baseline-2", "pair1-paper", "best_case", "baseline",
+                "paper-seed1", "notes", "baseline-10"]
+    loaded = runs_to_collect(plan, recorded)
+    assert loaded[:len(plan)] == plan
+    # The grouped order's runs, outside any pair, in their order; stray names left out.
+    assert [r.key for r in loaded[len(plan):]] == [
+        "baseline", "baseline-2", "baseline-10", "paper-seed1", "paper-seed2"]
+    assert all(r.pair == 0 for r in loaded[len(plan):])
+    # And the other way round: pairs recorded beside a grouped plan.
+    grouped = evaluation_plan([1], "grouped", baseline_runs=1)
+    assert [r.key for r in runs_to_collect(grouped, ["pair2-paper", "pair2-baseline"])][-2:] \
+        == ["pair2-baseline", "pair2-paper"]
+    assert runs_to_collect(plan, []) == plan
 
 
 def test_runs_are_selected_by_key_or_kind_and_unknown_names_are_refused():
-    plan = evaluation_plan([1, 2])
+    assert [r.key for r in select_runs(evaluation_plan([1, 2]), "baseline,paper")] == [
+        "pair1-baseline", "pair1-paper", "pair2-baseline", "pair2-paper"]
+    plan = evaluation_plan([1, 2], "grouped")
     assert [r.key for r in select_runs(plan, "baseline,paper")] == [
         "baseline", "baseline-2", "paper-seed1", "paper-seed2"]
     assert [r.key for r in select_runs(plan, "optimal-seed2, best_case")] == [
@@ -44,7 +98,8 @@ def test_runs_are_selected_by_key_or_kind_and_unknown_names_are_refused():
 
 def test_bad_arguments_are_one_line_and_exit_2(capsys):
     for argv in (["--runs", "nope"], ["--seeds", "x"], ["--duration", "-5"],
-                 ["--baseline-runs", "0"]):
+                 ["--order", "grouped", "--baseline-runs", "0"], ["--baseline-runs", "2"],
+                 ["--runs", "baseline-2"]):
         with pytest.raises(SystemExit) as ended:
             parse_args(argv, "out")
         assert ended.value.code == 2
@@ -66,13 +121,15 @@ def test_path_segments_keep_the_line_whole():
 class FakeRuns:
     """Stands in for run_testbed.py: writes a synthetic record where a run would."""
 
-    def __init__(self):
+    def __init__(self, baseline_done_t=210.0):
         self.argvs = []
+        self.baseline_done_t = baseline_done_t
 
     def __call__(self, argv, out_dir):
         self.argvs.append(argv)
         slow = "[[0, 0]]" in argv
-        rec = record(done_t=210.0 if slow else 150.0, mappings=[] if slow else None)
+        rec = record(done_t=self.baseline_done_t if slow else 150.0,
+                     mappings=[] if slow else None)
         # Back and forth along the small loop's south corridor (y = 3.4 m), inside the map.
         rec.truth = [(t, 3.4 + abs((x % 12.0) - 6.0), 3.4) for t, x, _ in rec.truth]
         run_dir = os.path.join(out_dir, "small_loop-fake")
@@ -87,7 +144,7 @@ def test_the_evaluation_runs_what_is_not_recorded_yet_and_writes_table_and_figur
     monkeypatch.setattr(evaluation_run, "run_logged", fake)
     monkeypatch.setattr(evaluation_run, "start_on_the_testbed", lambda program: None)
     out = str(tmp_path / "eval")
-    argv = ["--world", "small_loop", "--seeds", "1", "--baseline-runs", "1",
+    argv = ["--world", "small_loop", "--seeds", "1", "--order", "grouped", "--baseline-runs", "1",
             "--runs", "baseline,paper", "--duration", "50", "--out", out]
     # A path that cannot run: were the fake not in place, nothing would start a test bed.
     assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", argv) == 0
@@ -114,6 +171,44 @@ def test_the_evaluation_runs_what_is_not_recorded_yet_and_writes_table_and_figur
     printed = capsys.readouterr().out
     assert "[1/3] baseline: recorded already, not run again" in printed
     assert "best case (network everywhere)" in printed
+
+
+def test_the_paired_evaluation_runs_pairs_and_keeps_the_runs_recorded_in_the_grouped_order(
+        tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(evaluation_run, "start_on_the_testbed", lambda program: None)
+    out = str(tmp_path / "eval")
+    grouped = ["--world", "small_loop", "--seeds", "1", "--order", "grouped",
+               "--baseline-runs", "1", "--runs", "baseline,paper", "--out", out]
+    # A baseline of another day: 300 s to complete.
+    monkeypatch.setattr(evaluation_run, "run_logged", FakeRuns(baseline_done_t=310.0))
+    assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", grouped) == 0
+    fake = FakeRuns()           # today's: 200 s
+    monkeypatch.setattr(evaluation_run, "run_logged", fake)
+    paired = ["--world", "small_loop", "--seeds", "1,2", "--runs", "baseline,paper",
+              "--out", out]
+    capsys.readouterr()
+    assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", paired) == 0
+    assert [a[a.index("--link") + 1] for a in fake.argvs] == [
+        "schedule", "coverage", "schedule", "coverage"]
+    assert [a[a.index("--out") + 1] for a in fake.argvs] == [
+        os.path.join(out, k) for k in ("pair1-baseline", "pair1-paper", "pair2-baseline",
+                                       "pair2-paper")]
+    printed = capsys.readouterr().out
+    assert "[1/4] pair1-baseline: pair 1: baseline (no migration)" in printed
+    with open(os.path.join(out, "evaluation.md")) as f:
+        md = f.read()
+    # The day-old runs are in the table; each paired test is measured against its own
+    # baseline (200 s: 30 %), the mean of all three against 233 s.
+    assert "| baseline (no migration) | 0 | 300 s |" in md
+    assert "| AnyScale, seed 1 | 0 | 140 s | 40.0 % | - |" in md
+    assert "| pair 1: AnyScale, seed 1 | 0 | 140 s | 40.0 % | 30.0 % |" in md
+    assert "paired gain of the AnyScale tests (each against the baseline run just before it): " \
+           "30.0 % (sd 0.0 %, 30.0 to 30.0 %, 2 pairs)" in md
+    # Run again: everything is recorded, nothing runs.
+    fake.argvs.clear()
+    assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", paired) == 0
+    assert fake.argvs == []
+    assert "[4/4] pair2-paper: recorded already, not run again" in capsys.readouterr().out
 
 
 def test_fig5_colours_the_paths_by_configuration(tmp_path, monkeypatch):

@@ -5,18 +5,33 @@ paper_local and the optimal allocator, and the best case with the network everyw
 is scripts/run_testbed.py, the main job's code, at the calibrated CPU quotas. Then the table
 beside the paper's figures (evaluation.txt/.md/.csv), Fig. 5 and Fig. 6 (PNG), all in --out.
 
+Order (--order). paired (the default): for each seed N a baseline run, pairN-baseline, then at
+once the AnyScale test pairN-paper; then the other allocators' tests and the best case. Each
+test's gain is measured against its own pair's baseline as well as against the mean of all
+baselines: this machine is a shared VM whose speed drifts over hours and days (baselines of
+different days took 361-583 s; AMCL at home ran at 2 Hz one day, 3 Hz another under the same
+quota), so only runs measured side by side give the gain. Each run's AMCL rate with every node
+home is shown and flagged where it is off the premise (about 2 Hz). grouped (the order before):
+the baseline runs first (baseline, baseline-2, ..., --baseline-runs), then paper-seedN,
+paper_local-seedN, optimal-seedN, best_case.
+
 Resumable: a run whose directory in --out already holds a record.json is not run again, its
-record is read. A full office-floor run takes 8-10 minutes with its set-up, so the 15 runs take
-about 2.5 hours; the machine should be left to them. Root; run with the workspace sourced:
+record is read. The table has every run recorded in --out under a key of either order (the
+plan's first), so results recorded in the grouped order still load. A full office-floor run
+takes 8-10 minutes with its set-up, so the 17 runs of the paired order take about 2.8 hours;
+the machine should be left to them. Root; run with the workspace sourced:
     sudo -E /usr/bin/python3 scripts/run_evaluation.py --out results/evaluation
     sudo -E /usr/bin/python3 scripts/run_evaluation.py --runs baseline,paper --seeds 1,2
+    sudo -E /usr/bin/python3 scripts/run_evaluation.py --order grouped --baseline-runs 4
 """
 import argparse
 from dataclasses import dataclass
+import math
 import os
+import re
 import sys
 import time
-from typing import List, Optional, Sequence
+from typing import Iterable, List, Optional, Sequence, Tuple
 
 import yaml
 
@@ -32,9 +47,11 @@ from .evaluation_figures import (RunFigures, configurations_along_path, run_figu
 from .evaluation_plots import draw_fig5, draw_fig6
 from .evaluation_table import format_markdown, format_table, write_csv
 from .link_shaper import coverage_grid, coverage_model_from_grid
+from .premise_figures import premise_off_note
 from .testbed_record import TestbedRecord
 
 ALLOCATORS = ("paper", "paper_local", "optimal")
+ORDERS = ("paired", "grouped")
 # No migration: the link is down throughout, so every node stays on the robot.
 BASELINE_SCHEDULE = "[[0, 0]]"
 # The network everywhere: the best rate of the WiFi model (54 Mbit/s PHY, half usable) always.
@@ -49,23 +66,111 @@ class PlannedRun:
     seed: int
     title: str          # its name in the table and the figures
     argv: List[str]     # run_testbed.py's link and allocator options
+    pair: int = 0       # the seed of the interleaved pair it belongs to; 0: none
 
 
-def evaluation_plan(seeds: Sequence[int], baseline_runs: int = 2) -> List[PlannedRun]:
+def _baseline_argv() -> List[str]:
+    return ["--link", "schedule", "--schedule", BASELINE_SCHEDULE]
+
+
+def _seeded_argv(allocator: str, seed: int) -> List[str]:
+    return ["--link", "coverage", "--seed", str(seed), "--allocator", allocator]
+
+
+def grouped_baseline(k: int) -> PlannedRun:
+    """Baseline run k of the grouped order: baseline, baseline-2, ..."""
+    return PlannedRun("baseline" if k == 1 else f"baseline-{k}", "baseline", 0,
+                      "baseline (no migration)" + (f", run {k}" if k > 1 else ""),
+                      _baseline_argv())
+
+
+def seeded_test(allocator: str, seed: int) -> PlannedRun:
+    name = "AnyScale" if allocator == "paper" else f"AnyScale {allocator}"
+    return PlannedRun(f"{allocator}-seed{seed}", allocator, seed, f"{name}, seed {seed}",
+                      _seeded_argv(allocator, seed))
+
+
+def paired_baseline_run(seed: int) -> PlannedRun:
+    """The baseline of seed `seed`'s pair, run just before its test. Not baseline-N: that key
+    is the grouped order's run N, measured apart from any test."""
+    return PlannedRun(f"pair{seed}-baseline", "baseline", 0,
+                      f"pair {seed}: baseline (no migration)", _baseline_argv(), seed)
+
+
+def paired_test(seed: int) -> PlannedRun:
+    """The AnyScale test of seed `seed`'s pair, run just after its baseline."""
+    return PlannedRun(f"pair{seed}-paper", "paper", seed, f"pair {seed}: AnyScale, seed {seed}",
+                      _seeded_argv("paper", seed), seed)
+
+
+def best_case_run() -> PlannedRun:
+    return PlannedRun("best_case", "best_case", 0, "best case (network everywhere)",
+                      ["--link", "schedule", "--schedule", BEST_CASE_SCHEDULE])
+
+
+def grouped_plan(seeds: Sequence[int], baseline_runs: int = 2) -> List[PlannedRun]:
     """The baseline runs first (gains are measured against their mean), the seeded tests
     allocator by allocator, the best case last."""
-    plan = [PlannedRun("baseline" if k == 1 else f"baseline-{k}", "baseline", 0,
-                       "baseline (no migration)" + (f", run {k}" if k > 1 else ""),
-                       ["--link", "schedule", "--schedule", BASELINE_SCHEDULE])
-            for k in range(1, baseline_runs + 1)]
-    for allocator in ALLOCATORS:
-        name = "AnyScale" if allocator == "paper" else f"AnyScale {allocator}"
-        plan += [PlannedRun(f"{allocator}-seed{s}", allocator, s, f"{name}, seed {s}",
-                            ["--link", "coverage", "--seed", str(s), "--allocator", allocator])
-                 for s in seeds]
-    plan.append(PlannedRun("best_case", "best_case", 0, "best case (network everywhere)",
-                           ["--link", "schedule", "--schedule", BEST_CASE_SCHEDULE]))
-    return plan
+    return ([grouped_baseline(k) for k in range(1, baseline_runs + 1)]
+            + [seeded_test(a, s) for a in ALLOCATORS for s in seeds] + [best_case_run()])
+
+
+def paired_plan(seeds: Sequence[int]) -> List[PlannedRun]:
+    """Per seed a baseline and at once its AnyScale test (the machine's speed drifts: a gain
+    is measured side by side), then the other allocators' tests, the best case last."""
+    return ([run for s in seeds for run in (paired_baseline_run(s), paired_test(s))]
+            + [seeded_test(a, s) for a in ALLOCATORS if a != "paper" for s in seeds]
+            + [best_case_run()])
+
+
+def evaluation_plan(seeds: Sequence[int], order: str = "paired",
+                    baseline_runs: int = 2) -> List[PlannedRun]:
+    """The runs in `order` (ORDERS); baseline_runs counts only in the grouped order."""
+    if order not in ORDERS:
+        raise ValueError(f"--order: expected one of {', '.join(ORDERS)}, got {order!r}")
+    return paired_plan(seeds) if order == "paired" else grouped_plan(seeds, baseline_runs)
+
+
+# A number as the plans write it: no 0 (the unseeded model), no leading zero.
+_NUMBER = r"([1-9][0-9]*)"
+
+
+def _run_and_place_of_key(key: str) -> Optional[Tuple[Tuple[int, ...], PlannedRun]]:
+    """The run a key of either order names, with its place among runs loaded beside the plan:
+    grouped baselines, pairs, seeded tests by allocator, the best case, each in number order."""
+    found = None
+    m = re.fullmatch(rf"baseline(?:-{_NUMBER})?", key)
+    if m:
+        k = int(m.group(1) or 1)
+        found = ((0, k), grouped_baseline(k))
+    m = re.fullmatch(rf"pair{_NUMBER}-(baseline|paper)", key)
+    if m:
+        s, is_test = int(m.group(1)), m.group(2) == "paper"
+        found = ((1, s, is_test), paired_test(s) if is_test else paired_baseline_run(s))
+    m = re.fullmatch(rf"({'|'.join(ALLOCATORS)})-seed{_NUMBER}", key)
+    if m:
+        s = int(m.group(2))
+        found = ((2, ALLOCATORS.index(m.group(1)), s), seeded_test(m.group(1), s))
+    if key == "best_case":
+        found = ((3,), best_case_run())
+    # "baseline-1" is no key: the grouped order's first run is "baseline".
+    return found if found is not None and found[1].key == key else None
+
+
+def run_of_key(key: str) -> Optional[PlannedRun]:
+    """The run a key of either order names (baseline-3, paper-seed2, pair2-baseline, ...);
+    None for any other name."""
+    found = _run_and_place_of_key(key)
+    return found[1] if found else None
+
+
+def runs_to_collect(plan: Sequence[PlannedRun], recorded_keys: Iterable[str]) -> List[PlannedRun]:
+    """The plan, then every other run recorded under a key of either order (results recorded
+    in the grouped order load in the paired one and the other way round)."""
+    planned = {r.key for r in plan}
+    others = [found for found in map(_run_and_place_of_key, set(recorded_keys) - planned)
+              if found is not None]
+    return list(plan) + [run for _, run in sorted(others, key=lambda f: f[0])]
 
 
 def select_runs(plan: Sequence[PlannedRun], wanted: Optional[str]) -> List[PlannedRun]:
@@ -100,21 +205,30 @@ def parse_args(argv, default_out: str):
     p.add_argument("--world", default="office_floor",
                    help="office_floor (default), small_loop (the CI smoke test's)")
     p.add_argument("--seeds", default="1,2,3,4", help="the WiFi variation's seeds (1,2,3,4)")
-    p.add_argument("--baseline-runs", type=int, default=2, metavar="N",
-                   help="baseline runs, whose mean the gains are measured against (2): its time "
-                        "to complete varies from run to run")
+    p.add_argument("--order", choices=ORDERS, default="paired",
+                   help="paired (default): per seed a baseline, then at once its AnyScale test "
+                        "(the machine's speed drifts; a gain is measured side by side); "
+                        "grouped: the baseline runs first, then the tests (the order before)")
+    p.add_argument("--baseline-runs", type=int, default=None, metavar="N",
+                   help="with --order grouped: baseline runs, whose mean the gains are measured "
+                        "against (2): its time to complete varies from run to run")
     p.add_argument("--runs", default=None, metavar="NAMES",
-                   help="only these runs: keys (baseline, baseline-2, paper-seed1, "
-                        "paper_local-seed2, optimal-seed3, best_case) or kinds (baseline, "
-                        "paper, paper_local, optimal, best_case), comma-separated (default: all)")
+                   help="only these runs: keys (paired: pair1-baseline, pair1-paper; grouped: "
+                        "baseline, baseline-2, paper-seed1; both: paper_local-seed2, "
+                        "optimal-seed3, best_case) or kinds (baseline, paper, paper_local, "
+                        "optimal, best_case), comma-separated (default: all)")
     p.add_argument("--duration", type=float, default=0.0,
                    help="end each run after this many seconds (default: when the loop is done)")
     p.add_argument("--out", default=default_out, help=f"results directory ({default_out})")
     args = p.parse_args(argv)
-    if args.baseline_runs < 1:
+    if args.baseline_runs is not None and args.order == "paired":
+        p.error("--baseline-runs: only with --order grouped (paired: a baseline per seed, run "
+                "just before its test)")
+    if args.baseline_runs is not None and args.baseline_runs < 1:
         p.error(f"--baseline-runs: expected at least 1, got {args.baseline_runs}")
     try:
-        args.plan = evaluation_plan(parse_seeds(args.seeds), args.baseline_runs)
+        args.plan = evaluation_plan(parse_seeds(args.seeds), args.order,
+                                    args.baseline_runs or 2)
         args.selected = select_runs(args.plan, args.runs)
     except ValueError as e:
         p.error(str(e))
@@ -146,15 +260,16 @@ def run_one(run: PlannedRun, args, run_testbed: str, run_dir: str) -> int:
     return code
 
 
-def collect(plan: Sequence[PlannedRun], out: str, amcl_mbps: float) -> List[RunFigures]:
-    """The figures of every planned run recorded in `out`, in plan order."""
+def collect(runs: Sequence[PlannedRun], out: str, amcl_mbps: float) -> List[RunFigures]:
+    """The figures of every one of `runs` recorded in `out`, in their order."""
     figures = []
-    for run in plan:
+    for run in runs:
         run_dir = os.path.join(out, run.key)
         rec = latest_record(run_dir)
         if rec is not None:
             figures.append(run_figures(run.title, run.kind, run.seed,
-                                       recorded_exit_code(run_dir), rec, amcl_mbps))
+                                       recorded_exit_code(run_dir), rec, amcl_mbps,
+                                       pair=run.pair))
     return figures
 
 
@@ -185,6 +300,21 @@ def draw_figures(out: str, world: str, plan: Sequence[PlannedRun], figures: List
               [(f.name, f.row.path_time_s, f.mean_omega_deg_s) for f in figures])
 
 
+def progress_summary(done: RunFigures) -> str:
+    """A finished run's line; AMCL's rate at home says at once whether the machine still runs
+    the premise."""
+    off = premise_off_note(done.amcl_hz_home)
+    home = (f", AMCL {done.amcl_hz_home:.2f} Hz at home" + (f" ({off})" if off else "")
+            if math.isfinite(done.amcl_hz_home) else "")
+    return (f"time to complete {done.row.path_time_s:.0f} s, {done.row.migrations} migrations, "
+            f"{len(done.row.violations)} violations{home}")
+
+
+def recorded_keys(out: str) -> List[str]:
+    """The run directories in `out` (collect reads only those that hold a record)."""
+    return [d for d in os.listdir(out) if os.path.isdir(os.path.join(out, d))]
+
+
 def main(default_out: str, run_testbed: str, argv=None) -> int:
     args = parse_args(argv, default_out)
     start_on_the_testbed("run_evaluation")
@@ -210,18 +340,17 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
             rec = latest_record(run_dir)
             done = (run_figures(run.title, run.kind, run.seed, code, rec, amcl_mbps)
                     if rec else None)
-            summary = (f"time to complete {done.row.path_time_s:.0f} s, {done.row.migrations} "
-                       f"migrations, {len(done.row.violations)} violations" if done
-                       else "no record")
+            summary = progress_summary(done) if done else "no record"
             print(f"[{k}/{len(todo)}] {run.key}: done in {time.monotonic() - began:.0f} s, "
                   f"exit {code}: {summary}", flush=True)
     except KeyboardInterrupt:
         print("evaluation: interrupted; the table has the runs recorded so far", flush=True)
-    figures = collect(args.plan, out, amcl_mbps)
+    loaded = runs_to_collect(args.plan, recorded_keys(out))
+    figures = collect(loaded, out, amcl_mbps)
     if not figures:
         print("evaluation: no run recorded, no table", flush=True)
         return 1
-    write_outputs(out, args.world, args.plan, figures)
+    write_outputs(out, args.world, loaded, figures)
     return 0
 
 

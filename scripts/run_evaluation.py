@@ -1,7 +1,8 @@
 #!/usr/bin/python3
-"""The paper's evaluation on the two-scale test bed (baseline, four seeded AnyScale tests per
-allocator, best case; the table beside the paper's, Fig. 5 and Fig. 6): the logic is
-anyscale_testbed.evaluation_run; results go to results/evaluation/ of this workspace.
+"""The paper's evaluation on the two-scale test bed (by default per seed a baseline run, then at
+once its AnyScale test, gains measured side by side; the other allocators' tests, best case;
+the table beside the paper's, Fig. 5 and Fig. 6): the logic is anyscale_testbed.evaluation_run;
+results go to results/evaluation/ of this workspace.
 
 Root, with the workspace sourced; options: --help.
 """

@@ -11,9 +11,9 @@ test's gain is measured against its own pair's baseline as well as against the m
 baselines: this machine is a shared VM whose speed drifts over hours and days (baselines of
 different days took 361-583 s; AMCL at home ran at 2 Hz one day, 3 Hz another under the same
 quota), so only runs measured side by side give the gain. Each run's AMCL rate with every node
-home is shown and flagged where it is off the premise (about 2 Hz). grouped (the order before):
-the baseline runs first (baseline, baseline-2, ..., --baseline-runs), then paper-seedN,
-paper_local-seedN, optimal-seedN, best_case.
+home is shown, flagged where it is more than 0.5 Hz off the premise's 2 Hz (premise_figures).
+grouped (the order before): the baseline runs first (baseline, baseline-2, ...,
+--baseline-runs), then paper-seedN, paper_local-seedN, optimal-seedN, best_case.
 
 Resumable: a run whose directory in --out already holds a record.json is not run again, its
 record is read. The table has every run recorded in --out under a key of either order (the

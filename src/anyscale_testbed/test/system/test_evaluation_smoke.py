@@ -13,7 +13,7 @@ import sys
 import pytest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "..", ".."))
-DURATION_S = 45.0
+DURATION_S = 30.0
 RUNS = "pair1-baseline,pair1-paper"
 OUTPUTS = ("evaluation.txt", "evaluation.md", "evaluation.csv", "fig5_paths.png",
            "fig6_time_and_omega.png")

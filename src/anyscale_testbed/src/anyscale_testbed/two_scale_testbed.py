@@ -101,6 +101,11 @@ def namespace_exec(end: ScaleEnd, argv: List[str]) -> List[str]:
     return ["nsenter", f"--net=/var/run/netns/{end.namespace}", "--"] + list(argv)
 
 
+def quota_us(cores: float) -> int:
+    """cpu.cfs_quota_us for `cores` per CFS_PERIOD_US; -1 (no limit) for 0 cores."""
+    return int(cores * CFS_PERIOD_US) if cores > 0 else -1
+
+
 class CpuQuota:
     """A cgroup v1 CPU group holding a scale's processes at `cores` of CPU."""
 
@@ -110,9 +115,14 @@ class CpuQuota:
 
     def create(self):
         os.makedirs(self.path, exist_ok=True)
-        quota = int(self.cores * CFS_PERIOD_US) if self.cores > 0 else -1
         self._write("cpu.cfs_period_us", CFS_PERIOD_US)
-        self._write("cpu.cfs_quota_us", quota)
+        self._write("cpu.cfs_quota_us", quota_us(self.cores))
+
+    def set_cores(self, cores: float):
+        """Changes the quota of the existing group in place (only cpu.cfs_quota_us is written;
+        its processes stay in it): host_speed.CpuNormaliser follows the host's speed with it."""
+        self._write("cpu.cfs_quota_us", quota_us(cores))
+        self.cores = cores
 
     def add(self, pid: int):
         self._write("tasks", pid)

@@ -1,5 +1,6 @@
 """The test-bed record's figures: gaps around a move, reaction to a link loss, link changes,
 silences longer than a connection's tolerance."""
+import json
 import math
 
 import pytest
@@ -7,7 +8,8 @@ import pytest
 from anyscale_testbed.testbed_record import (EventRecord, TestbedRecord, colour_violations,
                                              first_after, format_summary, gap_during,
                                              link_transitions, longest_gap, move_figures,
-                                             reaction_s, tolerance_violations)
+                                             reaction_s, store_cpu_normalisation,
+                                             tolerance_violations)
 
 
 def event(decided_t, duration_s=0.5, kind="migrate", reason="laptop can take it"):
@@ -134,6 +136,36 @@ def test_the_record_keeps_its_violations(tmp_path):
     loaded = TestbedRecord.load(str(tmp_path / "record.json"))
     assert loaded.violations == rec.violations
     assert loaded.tolerances == {"/amcl_pose": 2.0, "/ar_markers": 1.0}
+
+
+def test_the_quotas_history_survives_a_round_trip_and_old_records_load_without_it(tmp_path):
+    path = str(tmp_path / "record.json")
+    rec = issue_12_run()
+    rec.cpu_normalisation = [(0.0, 0.34, 0.9, 15.5), (5.0, 0.36, 0.95, 16.4)]
+    rec.reference_cpu_ms = 15.5
+    rec.save(path)
+    loaded = TestbedRecord.load(path)
+    assert loaded.cpu_normalisation == [(0.0, 0.34, 0.9, 15.5), (5.0, 0.36, 0.95, 16.4)]
+    assert loaded.reference_cpu_ms == 15.5
+    # A record written before the field existed.
+    with open(path) as f:
+        old = json.load(f)
+    del old["cpu_normalisation"], old["reference_cpu_ms"]
+    with open(path, "w") as f:
+        json.dump(old, f)
+    loaded = TestbedRecord.load(path)
+    assert loaded.cpu_normalisation == [] and loaded.reference_cpu_ms is None
+    assert loaded.tolerances == {"/amcl_pose": 2.0, "/ar_markers": 1.0}
+
+
+def test_the_quotas_history_is_stored_on_the_records_clock(tmp_path):
+    path = str(tmp_path / "record.json")
+    TestbedRecord(started_wall=1000.0, world="office_floor").save(path)
+    store_cpu_normalisation(path, [(998.0, 0.34, 0.9, 15.5), (1005.0, 0.36, 0.95, 16.4)], 15.5)
+    loaded = TestbedRecord.load(path)
+    assert loaded.cpu_normalisation == [(-2.0, 0.34, 0.9, 15.5), (5.0, 0.36, 0.95, 16.4)]
+    assert loaded.reference_cpu_ms == 15.5 and loaded.world == "office_floor"
+    assert not (tmp_path / "record.json.tmp").exists()
 
 
 def test_the_end_table_flags_each_violation_in_plain_words_and_red_on_a_terminal():

@@ -7,6 +7,7 @@ from dataclasses import asdict, dataclass, field
 import bisect
 import json
 import math
+import os
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
@@ -70,6 +71,11 @@ class TestbedRecord:
     # paper's Fig. 6, and the ids of the AR markers recognised during the run.
     truth_yaw: List[Tuple[float, float]] = field(default_factory=list)
     markers_seen: List[int] = field(default_factory=list)
+    # run_testbed.py --normalise-cpu (host_speed.py): each period's (t, robot cores, laptop
+    # cores, median CPU ms of the host-speed workload), t on this record's clock, and the
+    # calibration's reference_cpu_ms. Empty / None: the quotas stayed the calibrated ones.
+    cpu_normalisation: List[Tuple[float, float, float, float]] = field(default_factory=list)
+    reference_cpu_ms: Optional[float] = None
 
     def save(self, path: str):
         with open(path, "w") as f:
@@ -85,7 +91,22 @@ class TestbedRecord:
         rec.violations = [Violation(**v) for v in d.get("violations", [])]
         rec.processes = [ProcessSample(**p) for p in d["processes"]]
         rec.mappings = [(t, m, p, o) for t, m, p, o in d["mappings"]]
+        rec.cpu_normalisation = [tuple(e) for e in d.get("cpu_normalisation", [])]
         return rec
+
+
+def store_cpu_normalisation(path: str, history: Sequence[Tuple[float, float, float, float]],
+                            reference_cpu_ms: float):
+    """Adds the quotas' history (wall-clock t, as host_speed.CpuNormaliser keeps it) to the
+    record at `path`, on the record's clock. run_testbed.py calls it after the monitor, which
+    writes the record, has ended; written whole and then renamed, as the monitor does."""
+    rec = TestbedRecord.load(path)
+    rec.cpu_normalisation = [(t - rec.started_wall, robot, laptop, ms)
+                             for t, robot, laptop, ms in history]
+    rec.reference_cpu_ms = reference_cpu_ms
+    tmp = path + ".tmp"
+    rec.save(tmp)
+    os.replace(tmp, path)
 
 
 # --- figures ------------------------------------------------------------------------------------

@@ -1,4 +1,5 @@
-"""scripts/run_testbed.py's arguments (anyscale_testbed.demo_run.parse_args): the WiFi seed."""
+"""scripts/run_testbed.py's arguments (anyscale_testbed.demo_run.parse_args): the WiFi seed,
+--normalise-cpu and the calibration's reference_cpu_ms it needs."""
 import pytest
 
 from anyscale_testbed.demo_run import parse_args
@@ -19,3 +20,46 @@ def test_a_bad_seed_is_one_line_and_exit_2(argv, message, capsys):
         parse_args(argv, "out")
     assert ended.value.code == 2
     assert message in capsys.readouterr().err
+
+
+def test_normalise_cpu_is_off_unless_asked_for():
+    assert parse_args([], "out").normalise_cpu is False
+    assert parse_args(["--normalise-cpu"], "out").normalise_cpu is True
+
+
+def test_the_reference_comes_from_the_calibration_and_its_absence_is_one_line(tmp_path, capsys):
+    from anyscale_testbed.demo_run import calibrated_reference_ms
+    good = tmp_path / "good.yaml"
+    good.write_text("reference_cpu_ms: 15.5\nrobot_cpu_cores: 0.34\n")
+    assert calibrated_reference_ms(str(good)) == 15.5
+    for name, text in (("old.yaml", "robot_cpu_cores: 0.34\n"),
+                       ("zero.yaml", "reference_cpu_ms: 0\n")):
+        path = tmp_path / name
+        path.write_text(text)
+        with pytest.raises(SystemExit) as ended:
+            calibrated_reference_ms(str(path))
+        assert "--normalise-cpu" in str(ended.value) and "reference_cpu_ms" in str(ended.value)
+
+
+def test_the_workspace_calibration_has_a_reference():
+    import os
+    from anyscale_testbed.demo_run import calibrated_reference_ms
+    here = os.path.dirname(os.path.abspath(__file__))
+    path = os.path.join(here, "..", "..", "anyscale_nav_demo", "config",
+                        "testbed_calibration.yaml")
+    assert 10.0 < calibrated_reference_ms(path) < 25.0
+
+
+def test_the_start_line_states_the_workload_and_the_quotas_set():
+    from anyscale_testbed.demo_run import normaliser_state
+    from anyscale_testbed.host_speed import CpuNormaliser
+
+    class Quota:
+        def set_cores(self, cores):
+            pass
+
+    n = CpuNormaliser({"robot": Quota(), "laptop": Quota()}, {"robot": 0.34, "laptop": 0.9},
+                      15.5, measure=lambda: 17.05, log=lambda line: None)
+    n.tick()
+    assert normaliser_state(n) == ("host speed: workload 17.1 ms of CPU now (calibrated at "
+                                   "15.5 ms): CPU quota robot 0.374, laptop 0.990 cores")

@@ -11,8 +11,10 @@ workspace sourced (scripts/run_demo.sh does that):
     sudo -E scripts/run_testbed.py                      # office floor, WiFi coverage model
     scripts/run_testbed.py --link schedule --schedule '[[0, 27], [40, 3], [60, 0], [75, 27]]'
     sudo -E scripts/run_testbed.py --start-goal 1      # the same loop, from the world's goal 1
+    sudo -E scripts/run_testbed.py --normalise-cpu     # quotas follow the host's speed
 """
 import argparse
+import contextlib
 import datetime
 import json
 import os
@@ -22,7 +24,8 @@ import sys
 
 import yaml
 
-from anyscale_testbed.testbed_record import colour_violations
+from anyscale_testbed.host_speed import CpuNormaliser
+from anyscale_testbed.testbed_record import colour_violations, store_cpu_normalisation
 from anyscale_testbed.testbed_session import (LoopbackBed, NamespaceBed, TestbedSession,
                                               layout_with_cpu)
 from anyscale_testbed.two_scale_testbed import TwoScaleError, missing_capabilities
@@ -73,6 +76,19 @@ def calibrated_cores(path: str):
         sys.exit(f"run_testbed: {path}: robot_cpu_cores / laptop_cpu_cores: {e}")
 
 
+def calibrated_reference_ms(path: str) -> float:
+    """The host-speed workload's CPU ms at which the calibration's quotas were right."""
+    try:
+        with open(path) as f:
+            reference = float((yaml.safe_load(f) or {})["reference_cpu_ms"])
+    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as e:
+        sys.exit(f"run_testbed: --normalise-cpu: {path}: reference_cpu_ms: {e}")
+    if not reference > 0:
+        sys.exit(f"run_testbed: --normalise-cpu: {path}: reference_cpu_ms must be positive, "
+                 f"got {reference:g}")
+    return reference
+
+
 def parse_args(argv, default_out: str):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -94,6 +110,16 @@ def parse_args(argv, default_out: str):
                    help="robot CPU quota (default: the calibration file's)")
     p.add_argument("--laptop-cpu", type=float, default=None, metavar="CORES",
                    help="laptop CPU quota (default: the calibration file's)")
+    p.add_argument("--normalise-cpu", action="store_true",
+                   help="scale both CPU quotas with the host's speed: every 5 s time a fixed "
+                        "workload (anyscale_testbed/host_speed.py) and set each quota to its "
+                        "cores x the workload's median CPU ms / the calibration's "
+                        "reference_cpu_ms, so that each scale gets the work per second done that "
+                        "it had at the calibration. Why: this host is a shared VM whose speed "
+                        "drifts; at the same 0.34 cores AMCL with every node home ran 3.18 to "
+                        "1.77 Hz over 7 runs as the workload took 11.8-16.5 ms. The quotas and "
+                        "the workload's ms go in the record (cpu_normalisation). Off by "
+                        "default; not yet validated on runs")
     p.add_argument("--allocator", default="paper", help="paper (default), paper_local, optimal")
     p.add_argument("--hysteresis", type=float, default=10.0, help="the paper's T in s (10)")
     p.add_argument("--hold-after-loss", type=float, default=None, metavar="S",
@@ -126,8 +152,10 @@ def main(default_out: str, argv=None) -> int:
     args = parse_args(argv, default_out)
     model = args.model or nav_demo_path("config", "testbed.yaml")
     robot_cpu, laptop_cpu = args.robot_cpu, args.laptop_cpu
+    calibration = nav_demo_path("config", "testbed_calibration.yaml")
+    reference_ms = calibrated_reference_ms(calibration) if args.normalise_cpu else None
     if robot_cpu is None or laptop_cpu is None:
-        calibrated = calibrated_cores(nav_demo_path("config", "testbed_calibration.yaml"))
+        calibrated = calibrated_cores(calibration)
         robot_cpu = calibrated[0] if robot_cpu is None else robot_cpu
         laptop_cpu = calibrated[1] if laptop_cpu is None else laptop_cpu
     (x, y, yaw), goals = world_start(args.world, args.start_goal)
@@ -140,6 +168,8 @@ def main(default_out: str, argv=None) -> int:
     if loopback:
         print(PREFIX + "running both scales on loopback: the link is NOT shaped and the CPUs "
               "are NOT limited, so this is not emulated WiFi. Migrations still happen for real.")
+        if args.normalise_cpu:
+            print(PREFIX + "--normalise-cpu: no CPU quotas on loopback, nothing to normalise")
 
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     start = "" if args.start_goal is None else f"-goal{args.start_goal}"
@@ -148,14 +178,24 @@ def main(default_out: str, argv=None) -> int:
                                            f"{args.world}{start}-{link}{seed}-{stamp}"))
     record = os.path.join(run_dir, "record.json")
     bed = LoopbackBed() if loopback else NamespaceBed(layout_with_cpu(robot_cpu, laptop_cpu))
+    normaliser = None
+    if args.normalise_cpu and not loopback:
+        # The groups exist once the bed is entered; the normaliser is entered after it and left
+        # before it, so it never writes to a group the teardown is removing.
+        normaliser = CpuNormaliser(bed.quotas, {"robot": robot_cpu, "laptop": laptop_cpu},
+                                   reference_ms, log=lambda line: print(PREFIX + line, flush=True))
     print(PREFIX + f"world {args.world}, link {link}" + (f" seed {args.seed}" if seed else "")
           + ("" if loopback else f", CPU quota robot {robot_cpu:g} / laptop {laptop_cpu:g} cores")
+          + (f" at the host speed of the calibration ({reference_ms:g} ms workload), "
+             "normalised every 5 s" if normaliser else "")
           + f"; logs and results in {run_dir}")
 
     # Ctrl-C and a plain kill both end in the teardown below.
     signal.signal(signal.SIGTERM, raise_interrupt)
     try:
-        with bed:
+        with bed, (normaliser or contextlib.nullcontext()):
+            if normaliser:
+                print(PREFIX + normaliser_state(normaliser), flush=True)
             session = TestbedSession(bed, run_dir)
             world = session.roslaunch(
                 "robot", "world", [
@@ -189,8 +229,20 @@ def main(default_out: str, argv=None) -> int:
         print(f"run_testbed: {e}", file=sys.stderr)
         return 1
     finally:
+        # After the bed's teardown: the monitor, which writes the record, has ended.
+        if normaliser and os.path.exists(record):
+            try:
+                store_cpu_normalisation(record, normaliser.history_copy(), reference_ms)
+            except (OSError, ValueError, TypeError, KeyError) as e:
+                print(PREFIX + f"the quotas' history is not in the record: {e}")
         if os.path.exists(record):
             print(PREFIX + f"record: {record}")
+
+
+def normaliser_state(normaliser: CpuNormaliser) -> str:
+    quotas = ", ".join(f"{scale} {cores:.3f}" for scale, cores in normaliser.cores.items())
+    return (f"host speed: workload {normaliser.median.value:.1f} ms of CPU now (calibrated at "
+            f"{normaliser.reference_cpu_ms:g} ms): CPU quota {quotas or 'none'} cores")
 
 
 def raise_interrupt(*_):

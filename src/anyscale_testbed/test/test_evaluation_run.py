@@ -10,7 +10,7 @@ from anyscale_testbed import evaluation_run
 from anyscale_testbed.evaluation_figures import AMCL_ON_LAPTOP, BOTH_ON_ROBOT
 from anyscale_nav_demo.results import configuration_runs
 from anyscale_testbed.evaluation_run import (amcl_bandwidth_mbps, evaluation_plan, parse_args,
-                                             parse_seeds, run_of_key, runs_to_collect,
+                                             parse_seeds, run_argv, run_of_key, runs_to_collect,
                                              select_runs)
 from test_evaluation_table import record
 
@@ -104,6 +104,19 @@ def test_bad_arguments_are_one_line_and_exit_2(capsys):
             parse_args(argv, "out")
         assert ended.value.code == 2
         assert "error: --" in capsys.readouterr().err.strip().splitlines()[-1]
+
+
+def test_normalise_cpu_is_passed_to_every_run_only_when_asked_for():
+    plan = evaluation_plan([1])
+    plain = parse_args([], "out")
+    normalised = parse_args(["--normalise-cpu"], "out")
+    assert plain.normalise_cpu is False and normalised.normalise_cpu is True
+    for run in plan:
+        argv = run_argv(run, plain, "run_testbed.py", "out/x")
+        assert "--normalise-cpu" not in argv and argv[-len(run.argv):] == run.argv
+        argv = run_argv(run, normalised, "run_testbed.py", "out/x")
+        assert argv.count("--normalise-cpu") == 1 and argv[-len(run.argv):] == run.argv
+        assert argv[1:4] == ["run_testbed.py", "--world", "office_floor"]
 
 
 def test_amcl_moves_its_scans_and_its_pose_over_the_link():

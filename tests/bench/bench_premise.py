@@ -16,11 +16,13 @@ time) and the cruise speed (the 80th percentile of the speed over 5 s windows: t
 turns on the spot and waits at goals, where no rule limits it). Results in
 DIR/premise.md and DIR/premise.csv. Run with the workspace sourced:
     sudo -E /usr/bin/python3 tests/bench/bench_premise.py --robot-cpu 0.28,0.32 --duration 150
+    sudo -E /usr/bin/python3 tests/bench/bench_premise.py --cases robot --normalise-cpu
 """
 import argparse
 import csv
 import datetime
 import os
+import statistics
 import sys
 import time
 
@@ -46,6 +48,11 @@ def parse_args(argv):
     p.add_argument("--skip", type=float, default=30.0,
                    help="seconds of start-up left out of the figures (30)")
     p.add_argument("--cases", default="robot,laptop", help="robot,laptop (both)")
+    p.add_argument("--normalise-cpu", action="store_true",
+                   help="each run with run_testbed.py --normalise-cpu (the quotas follow the "
+                        "host's speed; see its --help), and the host-speed workload's median "
+                        "ms printed per run: whether the premise then holds whatever the host's "
+                        "speed is what this checks. Off by default")
     p.add_argument("--out", default=None,
                    help="results directory (default: results/bench_premise/<date-time>)")
     args = p.parse_args(argv)
@@ -64,10 +71,28 @@ def parse_args(argv):
     return args
 
 
-def run_once(quota, case: str, duration: float, out_dir: str) -> int:
+def run_argv(quota, case: str, duration: float, out_dir: str, normalise_cpu: bool = False):
     argv = [sys.executable, RUN_TESTBED, "--world", "office_floor", "--link", "schedule",
             "--schedule", LINKS[case], "--duration", str(duration), "--out", out_dir]
-    return run_logged(argv + ([] if quota is None else ["--robot-cpu", str(quota)]), out_dir)
+    return (argv + ([] if quota is None else ["--robot-cpu", str(quota)])
+            + (["--normalise-cpu"] if normalise_cpu else []))
+
+
+def run_once(quota, case: str, duration: float, out_dir: str, normalise_cpu: bool = False) -> int:
+    return run_logged(run_argv(quota, case, duration, out_dir, normalise_cpu), out_dir)
+
+
+def host_speed_line(rec) -> str:
+    """The host-speed workload's median ms over the run and the robot quotas it set (a record
+    of --normalise-cpu), or '' for a run without it."""
+    history = rec.cpu_normalisation
+    if not history:
+        return ""
+    ms = [h[3] for h in history]
+    robot = [h[1] for h in history]
+    return (f"    host workload {statistics.median(ms):.1f} ms median ({min(ms):.1f}-"
+            f"{max(ms):.1f}; reference {rec.reference_cpu_ms:g}), robot quota "
+            f"{min(robot):.3f}-{max(robot):.3f} cores")
 
 
 def main(argv=None) -> int:
@@ -85,9 +110,11 @@ def main(argv=None) -> int:
             run_dir = os.path.join(out, f"{k + 1:02d}-{label}-{case}")
             print(f"[{k + 1}/{len(runs)}] robot quota {label}, {case} run", flush=True)
             began = time.monotonic()
-            code = run_once(quota, case, args.duration, run_dir)
+            code = run_once(quota, case, args.duration, run_dir, args.normalise_cpu)
             rec = latest_record(run_dir)
             figures = premise_figures(rec, args.skip) if rec else []
+            if rec and host_speed_line(rec):
+                print(host_speed_line(rec), flush=True)
             for f in figures:
                 rows.append({"quota": label, "case": case, **f})
                 print(f"    {f['configuration']:<28} {f['seconds']:4.0f} s  AMCL "

@@ -1,0 +1,58 @@
+"""The benches' command line for each run (imported from their files under tests/bench; the
+benches themselves need root and the test bed): --normalise-cpu reaches run_testbed.py only
+when asked for, and the premise bench prints the host's speed a normalised run recorded."""
+import importlib.util
+import os
+
+import pytest
+
+from anyscale_testbed.testbed_record import TestbedRecord
+
+BENCH_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "tests",
+                         "bench")
+
+
+def load_bench(name):
+    spec = importlib.util.spec_from_file_location(name, os.path.join(BENCH_DIR, f"{name}.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def tolerances():
+    return load_bench("bench_tolerances")
+
+
+@pytest.fixture(scope="module")
+def premise():
+    return load_bench("bench_premise")
+
+
+def test_the_tolerance_bench_passes_normalise_cpu_only_when_asked_for(tolerances):
+    plain = tolerances.parse_args([])
+    assert plain.normalise_cpu is False
+    argv = tolerances.run_argv(plain, 2, 13, "out/run03")
+    assert "--normalise-cpu" not in argv
+    assert argv[1] == tolerances.RUN_TESTBED and argv[argv.index("--seed") + 1] == "13"
+    assert argv[argv.index("--start-goal") + 1] == "2"
+    normalised = tolerances.parse_args(["--normalise-cpu", "--runs", "2"])
+    argv = tolerances.run_argv(normalised, 0, 11, "out/run01")
+    assert argv.count("--normalise-cpu") == 1 and argv[argv.index("--out") + 1] == "out/run01"
+
+
+def test_the_premise_bench_passes_normalise_cpu_only_when_asked_for(premise):
+    assert premise.parse_args([]).normalise_cpu is False
+    assert premise.parse_args(["--normalise-cpu"]).normalise_cpu is True
+    argv = premise.run_argv(0.34, "robot", 150.0, "out/01")
+    assert "--normalise-cpu" not in argv and argv[argv.index("--robot-cpu") + 1] == "0.34"
+    argv = premise.run_argv(None, "robot", 150.0, "out/01", normalise_cpu=True)
+    assert argv.count("--normalise-cpu") == 1 and "--robot-cpu" not in argv
+
+
+def test_the_premise_bench_states_the_host_speed_of_a_normalised_run(premise):
+    assert premise.host_speed_line(TestbedRecord()) == ""
+    rec = TestbedRecord(cpu_normalisation=[(0.0, 0.34, 0.9, 15.5), (5.0, 0.36, 0.95, 16.4),
+                                           (10.0, 0.35, 0.93, 16.0)], reference_cpu_ms=15.5)
+    assert premise.host_speed_line(rec) == ("    host workload 16.0 ms median (15.5-16.4; "
+                                            "reference 15.5), robot quota 0.340-0.360 cores")

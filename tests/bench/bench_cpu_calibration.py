@@ -12,7 +12,10 @@ src/anyscale_nav_demo/config/testbed_calibration.yaml unless given on the comman
 Each step starts a fresh demo (the robot at start A, navigation driving the loop by itself) with
 the group unlimited, waits --warmup s (rospy nodes need seconds of CPU to start; under the
 quota that alone would take half a minute), then applies the quota, lets it settle --settle s
-and measures --duration s.
+and measures --duration s. While it measures, this process times the host-speed workload
+(anyscale_testbed/host_speed.py) every 5 s: its median CPU ms is printed beside the rates, so a
+calibration states the host speed it was made at (testbed_calibration.yaml's reference_cpu_ms;
+this shared VM's speed drifts, and a quota is a share of it).
 
     sudo /usr/bin/python3 tests/bench/bench_cpu_calibration.py
     sudo /usr/bin/python3 tests/bench/bench_cpu_calibration.py --quotas 0.3,0.35,none --laptop-quotas 0.8
@@ -23,6 +26,7 @@ import argparse
 import json
 import os
 import signal
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -35,6 +39,7 @@ import yaml
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "anyscale_testbed", "src"))
+from anyscale_testbed.host_speed import HostSpeedMonitor  # noqa: E402
 from anyscale_testbed.two_scale_testbed import CpuQuota, cgroup_available  # noqa: E402
 
 PKG = os.path.join(ROOT, "src", "anyscale_nav_demo")
@@ -208,9 +213,15 @@ class Bench:
         t0 = {n: sum(p.cpu_times()[:2]) for n, p in procs.items()}
         thr0 = {g.path: throttle(g) for g in self.groups}
         w0 = time.time()
-        out = subprocess.run(["/usr/bin/python3", "-c", RATE_COUNTER, ",".join(TOPICS),
-                              str(self.args.duration)], env=self.env, capture_output=True, text=True,
-                             timeout=self.args.duration + 60)
+        # In this process, outside the groups, while the rates are counted: the host's speed
+        # these rates were measured at (one window, so every measurement counts).
+        host = HostSpeedMonitor(period_s=5.0, window=10000, initial_samples=1, log=log).start()
+        try:
+            out = subprocess.run(["/usr/bin/python3", "-c", RATE_COUNTER, ",".join(TOPICS),
+                                  str(self.args.duration)], env=self.env, capture_output=True,
+                                 text=True, timeout=self.args.duration + 60)
+        finally:
+            host.stop()
         wall = time.time() - w0
         cpu = {}
         for n, p in procs.items():
@@ -229,7 +240,8 @@ class Bench:
             rates = {t: float("nan") for t in TOPICS}
         self.end_step()
         return {"robot_q": robot_q, "laptop_q": laptop_q, "rates": rates, "cpu": cpu,
-                "throttle": thr, "wall": wall}
+                "throttle": thr, "wall": wall, "host_ms": host.median.value,
+                "host_samples": list(host.samples)}
 
 
 def throttle(group):
@@ -256,17 +268,24 @@ def node_pid(master, name):
         return None
 
 
+def host_ms(result):
+    value = result.get("host_ms")
+    return float("nan") if value is None else value
+
+
 def print_table(title, results, nodes, laptop):
     print("\n" + title)
     cols = ["/amcl_pose", "/ar_markers", "/scan", "/joint_states", "/odom", "/odometry/filtered",
             "/camera/image_raw"]
     head = "%-7s %-7s" % ("robot", "laptop") + "".join("%9s" % c.split("/")[-1][:8] for c in cols)
     print("rates (Hz; Table I min/opt: " + ", ".join("%s %d/%d" % (c.split("/")[-1], *TOPICS[c])
-                                                      for c in cols) + ")")
-    print(head)
+                                                      for c in cols) + "); host_ms: the host-speed "
+          "workload's median CPU ms while they were counted")
+    print(head + "%9s" % "host_ms")
     for r in results:
         print("%-7s %-7s" % (qname(r["robot_q"]), "-" if r["laptop_q"] is None else qname(r["laptop_q"]))
-              + "".join("%9.2f" % r["rates"].get(c, float("nan")) for c in cols))
+              + "".join("%9.2f" % r["rates"].get(c, float("nan")) for c in cols)
+              + "%9.1f" % host_ms(r))
     print("CPU (% of one core; group = sum of its nodes; throttled = % of CFS periods)")
     names = nodes + [SIM]
     print("%-7s %-7s" % ("robot", "laptop") + "".join("%9s" % n[:8] for n in names)
@@ -356,17 +375,19 @@ def main():
                 % (qname(q), args.warmup, args.settle, args.duration))
             r = bench.step(q)
             results_r.append(r)
-            log("  /amcl_pose %.2f Hz, /ar_markers %.2f Hz, amcl %.1f %%, ar %.1f %% of a core"
+            log("  /amcl_pose %.2f Hz, /ar_markers %.2f Hz, amcl %.1f %%, ar %.1f %% of a core, "
+                "host workload %.1f ms"
                 % (r["rates"]["/amcl_pose"], r["rates"]["/ar_markers"], r["cpu"].get("amcl", float("nan")),
-                   r["cpu"].get("ar_recognition", float("nan"))))
+                   r["cpu"].get("ar_recognition", float("nan")), host_ms(r)))
         for q in laptop_qs:
             log("laptop case: AMCL + AR in a %s-core group, rest of the robot at %s"
                 % (qname(q), qname(lr)))
             r = bench.step(lr, q)
             results_l.append(r)
-            log("  /amcl_pose %.2f Hz, /ar_markers %.2f Hz, amcl %.1f %%, ar %.1f %% of a core"
+            log("  /amcl_pose %.2f Hz, /ar_markers %.2f Hz, amcl %.1f %%, ar %.1f %% of a core, "
+                "host workload %.1f ms"
                 % (r["rates"]["/amcl_pose"], r["rates"]["/ar_markers"], r["cpu"].get("amcl", float("nan")),
-                   r["cpu"].get("ar_recognition", float("nan"))))
+                   r["cpu"].get("ar_recognition", float("nan")), host_ms(r)))
     except KeyboardInterrupt:
         log("interrupted; cleaning up")
     finally:
@@ -377,6 +398,13 @@ def main():
           % (time.strftime("%Y-%m-%d %H:%M"), psutil.cpu_count(), args.world, args.duration,
              time.time() - t_start))
     print("amcl: %s\nar_recognition: %s" % (args.amcl_params, args.ar_params))
+    samples = [ms for r in results_r + results_l for ms in r.get("host_samples", [])]
+    if samples:
+        print("host-speed workload (anyscale_testbed/host_speed.py): median %.1f ms of CPU over "
+              "the steps (%.1f-%.1f, %d measurements); the calibration file's reference_cpu_ms "
+              "is %s: state the median there if these quotas are chosen"
+              % (statistics.median(samples), min(samples), max(samples), len(samples),
+                 cal.get("reference_cpu_ms", "not set")))
     if results_r:
         print_table("ROBOT case: the robot's whole node set in one group (simulator outside)",
                     results_r, ROBOT_NODES, laptop=False)

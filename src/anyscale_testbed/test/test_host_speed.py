@@ -51,8 +51,8 @@ def test_a_rolling_median_needs_a_window():
 
 
 # --- the workload -------------------------------------------------------------------------------
-def test_the_workload_is_the_tools_and_is_timed_on_the_thread_clock():
-    # The same arrays and loop counts as /work/tools/host_speed.py give the same sum.
+def test_the_workload_is_the_calibrated_one_and_is_timed_on_the_thread_clock():
+    # The arrays and loop counts reference_cpu_ms was measured with give the same sum.
     import numpy as np
     rng = np.random.default_rng(0)
     a = rng.random((256, 341))

@@ -25,9 +25,9 @@ import numpy as np
 # (t, robot cores, laptop cores, median workload CPU ms); 0 cores = that scale has no quota.
 HistoryEntry = Tuple[float, float, float, float]
 
-# The workload is exactly /work/tools/host_speed.py's (the same arrays, seed, loop counts), so
-# that its CPU ms stay comparable with the figures measured with that tool (11.8-16.5 ms) and
-# with reference_cpu_ms in testbed_calibration.yaml. Change it and those figures are void.
+# The workload must stay exactly this (arrays, seed, loop counts): the figures above (11.8-16.5
+# ms, timed by a probe process running it every 5 s) and reference_cpu_ms in
+# testbed_calibration.yaml were measured with it. Change it and those figures are void.
 _SEED = 0
 _SHAPE = (256, 341)
 _NUMPY_PASSES = 30

@@ -319,8 +319,8 @@ void AgentNode::onGraph(const ros::SteadyTimerEvent&)
     }
     else if (info && info->adopted && info->exit_code == -1 && info->exit_signal == 0)
     {
-      ROS_WARN("%s exited by itself (exit status unknown: adopted from the agent before this one, it is not this "
-               "agent's child); log: %s",
+      ROS_WARN("%s exited by itself (exit status unknown: it was started by the agent before this one, so it is "
+               "not this agent's child); log: %s",
                name.c_str(), info->log_file.c_str());
     }
     else if (info)

@@ -285,23 +285,25 @@ bool sameCommandLine(const std::vector<std::string>& argv, const std::vector<std
   return true;
 }
 
-std::string whyNotAdopted(const NodeStateEntry& entry, const std::optional<ProcStat>& stat,
-                          const std::vector<std::string>& cmdline)
+IdentityCheck checkIdentity(const NodeStateEntry& entry, const std::optional<ProcStat>& stat,
+                            const std::vector<std::string>& cmdline)
 {
+  const std::string pid = "pid " + std::to_string(entry.pid);
   if (!stat)
-    return "it is gone";
+    return { Identity::Gone, "it has ended" };
   if (stat->state == 'Z' || stat->state == 'X')
-    return "it has exited";
+    return { Identity::Gone, "it has ended (a zombie now)" };
   // The pid alone may have been handed to another process since: the start time tells them apart.
   if (stat->start_time != entry.start_time)
-    return "pid " + std::to_string(entry.pid) + " is another process now (started at tick " +
-           std::to_string(stat->start_time) + ", not " + std::to_string(entry.start_time) + ")";
+    return { Identity::Gone, "it has ended; " + pid + " is another process now (started at tick " +
+                                 std::to_string(stat->start_time) + ", not " + std::to_string(entry.start_time) + ")" };
   if (!sameCommandLine(entry.argv, cmdline))
-    return "pid " + std::to_string(entry.pid) + " runs another command line now (it exec'd something else)";
+    return { Identity::Changed, pid + " runs another command line now (it exec'd another program); left alone" };
   // Stops signal the whole group; a process that left it could not be stopped that way.
   if (stat->pgrp != entry.pid)
-    return "pid " + std::to_string(entry.pid) + " left its process group (now " + std::to_string(stat->pgrp) + ")";
-  return "";
+    return { Identity::Changed,
+             pid + " left its process group (now " + std::to_string(stat->pgrp) + "); left alone" };
+  return { Identity::Same, "" };
 }
 
 }  // namespace anyscale_agent

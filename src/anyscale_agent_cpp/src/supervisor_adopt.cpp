@@ -80,10 +80,29 @@ AdoptionReport Supervisor::adopt(const std::string& state_file)
     auto drop = [&](const std::string& why) {
       report.dropped.push_back(e.name + " (pid " + std::to_string(e.pid) + "): " + why);
     };
+    // A node that ended while no agent ran is shown as ended by itself (exit status unknown),
+    // as if it had ended under this agent: the decision node starts again a node its agent
+    // reports EXITED, and would never learn of one that is simply missing.
+    auto ended = [&](const std::string& why) {
+      drop(why);
+      if (const auto it = records_.find(e.name); it != records_.end())
+        return;
+      Record r;
+      r.info.name = e.name;
+      r.info.state = ProcState::Exited;
+      r.info.log_file = e.log_file;
+      r.info.started = startedAt(e.start_time);
+      r.info.adopted = true;
+      r.group = Group{ e.pid, 3, Clock::time_point::max() };
+      records_[e.name] = std::move(r);
+      // Paused, it was a spare (the node runs elsewhere); stopping, its end was asked for.
+      if (e.state == kNodeStates[0] || e.state == kNodeStates[1])
+        unrequested_exits_.push_back(e.name);
+    };
     // Start times count from boot; after a reboot they could match a stranger.
     if (previous->boot_id != boot_id_ || boot_id_.empty())
     {
-      drop("the file is from an earlier boot");
+      ended("the file is from an earlier boot");
       continue;
     }
     if (const auto it = records_.find(e.name); it != records_.end() && isAlive(it->second))
@@ -99,16 +118,23 @@ AdoptionReport Supervisor::adopt(const std::string& state_file)
       pidfd = openPidfd(e.pid);
       if (pidfd.get() < 0 && errno == ESRCH)
       {
-        drop("it is gone");
+        ended("it has ended");
         continue;
       }
     }
     const auto stat = readStat(e.pid);
     const auto cmdline = readFile("/proc/" + std::to_string(e.pid) + "/cmdline");
-    if (const std::string why = whyNotAdopted(e, stat, parseCmdline(cmdline.value_or(""))); !why.empty())
+    const IdentityCheck check = checkIdentity(e, stat, parseCmdline(cmdline.value_or("")));
+    if (check.identity == Identity::Gone)
     {
-      // Not ours to end: a process we cannot identify is left alone (the line says its pid).
-      drop(why);
+      ended(check.why);
+      continue;
+    }
+    if (check.identity == Identity::Changed)
+    {
+      // Not ours to end or to count: a process we cannot identify is left alone (the line
+      // names its pid).
+      drop(check.why);
       continue;
     }
     Record r;
@@ -119,12 +145,14 @@ AdoptionReport Supervisor::adopt(const std::string& state_file)
     r.info.adopted = true;
     // A paused node stays paused: it is the master scale's spare of a node that runs on
     // another scale, and the next start here resumes it, as if the agent had never gone.
-    // The kernel says whether it is stopped (the file could lag a pause by a write).
+    // Paused if the file says so or the kernel shows it stopped ('T'): the leader of a group
+    // stopped while it vfork()ed shows 'D' until its stopped child runs, and the file may lag
+    // a SIGSTOP by one write.
     // A node the predecessor was stopping is stopped again from SIGINT: someone asked for
     // it, and its stop's progress died with the predecessor.
-    r.info.state = stat->state == 'T' ? ProcState::Paused :
-                   e.state == kNodeStates[0] ? ProcState::Starting :
-                                               ProcState::Running;
+    r.info.state = e.state == kNodeStates[2] || stat->state == 'T' ? ProcState::Paused :
+                   e.state == kNodeStates[0]                       ? ProcState::Starting :
+                                                                     ProcState::Running;
     if (e.state == kNodeStates[3])
       resume_stop.push_back(e.name);
     r.group = Group{e.pid, 0, Clock::time_point::max()};

@@ -196,17 +196,25 @@ TEST(NodeStateFile, WhyAProcessIsNotTheNode)
   // state ppid pgrp session tty tpgid flags minflt cminflt majflt cmajflt utime stime cutime
   // cstime priority nice threads itrealvalue starttime vsize rss
   const std::string tail = " 0 0 0 0 0 0 0 0 20 0 1 0 ";
-  EXPECT_EQ(whyNotAdopted(e, stat("S 1 4242 4242 0 -1 0" + tail + "777 1000 10"), e.argv), "");
-  EXPECT_EQ(whyNotAdopted(e, stat("T 1 4242 4242 0 -1 0" + tail + "777 1000 10"), e.argv), "") << "paused";
-  EXPECT_EQ(whyNotAdopted(e, std::nullopt, {}), "it is gone");
-  EXPECT_EQ(whyNotAdopted(e, stat("Z 1 4242 4242 0 -1 0" + tail + "777 0 0"), {}), "it has exited");
-  EXPECT_NE(whyNotAdopted(e, stat("S 1 4242 4242 0 -1 0" + tail + "778 1000 10"), e.argv).find("another process"),
-            std::string::npos);
-  EXPECT_NE(whyNotAdopted(e, stat("S 1 4242 4242 0 -1 0" + tail + "777 1000 10"), { "/bin/bash" })
-                .find("another command line"),
-            std::string::npos);
-  EXPECT_NE(whyNotAdopted(e, stat("S 1 99 99 0 -1 0" + tail + "777 1000 10"), e.argv).find("process group"),
-            std::string::npos);
+  auto check = [&](const std::optional<ProcStat>& s, const std::vector<std::string>& cmdline) {
+    return checkIdentity(e, s, cmdline);
+  };
+  EXPECT_EQ(check(stat("S 1 4242 4242 0 -1 0" + tail + "777 1000 10"), e.argv).identity, Identity::Same);
+  EXPECT_EQ(check(stat("T 1 4242 4242 0 -1 0" + tail + "777 1000 10"), e.argv).identity, Identity::Same) << "paused";
+  // Behind an interpreter (a script's "#!/usr/bin/env python3").
+  EXPECT_EQ(check(stat("S 1 4242 4242 0 -1 0" + tail + "777 1000 10"), { "python3", "/bin/sleep", "30" }).identity,
+            Identity::Same);
+  EXPECT_EQ(check(std::nullopt, {}).identity, Identity::Gone);
+  EXPECT_EQ(check(stat("Z 1 4242 4242 0 -1 0" + tail + "777 0 0"), {}).identity, Identity::Gone);
+  const IdentityCheck reused = check(stat("S 1 4242 4242 0 -1 0" + tail + "778 1000 10"), e.argv);
+  EXPECT_EQ(reused.identity, Identity::Gone);
+  EXPECT_NE(reused.why.find("another process"), std::string::npos) << reused.why;
+  const IdentityCheck exec = check(stat("S 1 4242 4242 0 -1 0" + tail + "777 1000 10"), { "/bin/bash" });
+  EXPECT_EQ(exec.identity, Identity::Changed);
+  EXPECT_NE(exec.why.find("another command line"), std::string::npos) << exec.why;
+  const IdentityCheck group = check(stat("S 1 99 99 0 -1 0" + tail + "777 1000 10"), e.argv);
+  EXPECT_EQ(group.identity, Identity::Changed);
+  EXPECT_NE(group.why.find("process group"), std::string::npos) << group.why;
 }
 
 TEST(NodeStateFile, BootIdIsRead)

@@ -200,16 +200,28 @@ TEST_P(SupervisorAdopt, APidWithAnotherStartTimeOrCommandIsNotAdopted)
   std::string all;
   for (const auto& line : report.dropped)
     all += line + "\n";
-  EXPECT_NE(all.find("/reused (pid " + std::to_string(node.pid) + "): pid " + std::to_string(node.pid) +
-                     " is another process now"),
+  EXPECT_NE(all.find("/reused (pid " + std::to_string(node.pid) + "): it has ended; pid " +
+                     std::to_string(node.pid) + " is another process now"),
             std::string::npos)
       << all;
   EXPECT_NE(all.find("/other (pid " + std::to_string(node.pid) + "): pid " + std::to_string(node.pid) +
                      " runs another command line"),
             std::string::npos)
       << all;
-  EXPECT_NE(all.find("/gone (pid 4194305): it is gone"), std::string::npos) << all;
-  EXPECT_TRUE(s.snapshot().empty());
+  EXPECT_NE(all.find("/gone (pid 4194305): it has ended"), std::string::npos) << all;
+  // The nodes that ended while no agent ran are shown as ended by themselves (so that the
+  // decision node starts them again); the process it cannot identify is not shown at all.
+  for (const char* name : { "/reused", "/gone" })
+  {
+    const auto info = s.info(name);
+    ASSERT_TRUE(info.has_value()) << name;
+    EXPECT_EQ(info->state, ProcState::Exited);
+    EXPECT_EQ(info->pid, 0);
+    EXPECT_EQ(info->exit_code, -1);
+    EXPECT_EQ(info->exit_signal, 0);
+  }
+  EXPECT_FALSE(s.info("/other").has_value());
+  EXPECT_EQ(s.takeUnrequestedExits(), (std::vector<std::string>{ "/reused", "/gone" }));
   EXPECT_TRUE(readNodeStateFile(path_)->nodes.empty());
   // A process it cannot identify is not its to end.
   s.poll();
@@ -301,6 +313,7 @@ TEST(SupervisorAdoptFile, EntriesFromAnotherBootAreDropped)
   EXPECT_TRUE(report.adopted.empty());
   ASSERT_EQ(report.dropped.size(), 1u);
   EXPECT_NE(report.dropped[0].find("earlier boot"), std::string::npos) << report.dropped[0];
+  EXPECT_EQ(sup.info("/old")->state, ProcState::Exited);
 }
 
 TEST(SupervisorAdoptFile, NodesOfAKilledAgentLiveOnAndAreAdopted)

@@ -71,9 +71,21 @@ std::vector<std::string> parseCmdline(const std::string& raw);
 // so one or two words before the exact argv count as the same command line.
 bool sameCommandLine(const std::vector<std::string>& argv, const std::vector<std::string>& cmdline);
 
-// Why the live process `stat` / `cmdline` (read AFTER the pid was pinned with a pidfd) is not
-// the node `entry` names; "" if it is. nullopt `stat`: no such process.
-std::string whyNotAdopted(const NodeStateEntry& entry, const std::optional<ProcStat>& stat,
-                          const std::vector<std::string>& cmdline);
+// Whether the process at the entry's pid (`stat` and `cmdline`, read AFTER the pid was pinned
+// with a pidfd; nullopt `stat`: no such process) is the node the entry names.
+enum class Identity
+{
+  Same,     // adopt it
+  Gone,     // the node's process has ended (the pid is free, a zombie, or another process's)
+  Changed,  // the same process (pid and start time), but not as written: it exec'd another
+            // program or left its process group
+};
+struct IdentityCheck
+{
+  Identity identity;
+  std::string why;  // for the log; "" when Same
+};
+IdentityCheck checkIdentity(const NodeStateEntry& entry, const std::optional<ProcStat>& stat,
+                            const std::vector<std::string>& cmdline);
 
 }  // namespace anyscale_agent

@@ -76,7 +76,8 @@ struct SupervisorOptions
   // on a remote scale must not outlive the agent that enforces its lease. SIGKILL, because a
   // handled signal may never end the node: rospy runs its shutdown inside the SIGTERM handler
   // on the main thread, and a rospy talker caught in publish() that way was seen blocked on a
-  // futex for good, ignoring even the master's shutdown request. 0 disables it.
+  // futex for good, ignoring even the master's shutdown request. 0 disables it: the agent does
+  // so on the master scale (~nodes_outlive_agent), whose nodes its successor adopts (adopt()).
   int parent_death_signal = SIGKILL;
   // Watch adopted nodes with pidfd_open(2) (Linux >= 5.3). False, or a kernel without it
   // (ENOSYS): /proc/PID/stat is read at every poll() instead. A switch for the tests.

@@ -44,6 +44,12 @@ SupervisorOptions supervisorOptions(const ros::NodeHandle& pnh)
   SupervisorOptions o;
   o.sigint_timeout_s = positive(pnh, "sigint_timeout_s", o.sigint_timeout_s);
   o.sigterm_timeout_s = positive(pnh, "sigterm_timeout_s", o.sigterm_timeout_s);
+  // On the master scale the nodes are the robot's own (drivers, localisation): a killed agent
+  // must not take them down, as rosmon or systemd would not; its successor adopts them. On
+  // any other scale a node must not outlive the agent that enforces its lease, or a robot
+  // that already started its own instance would see two.
+  if (param(pnh, "nodes_outlive_agent", param(pnh, "is_master", false)))
+    o.parent_death_signal = 0;
   return o;
 }
 
@@ -99,6 +105,8 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   std::filesystem::create_directories(log_dir_, ec);
   if (ec)
     throw std::runtime_error("cannot create ~log_dir '" + log_dir_ + "': " + ec.message());
+  // Before any start: the nodes a killed predecessor left running are this agent's again.
+  adoptNodes(param<std::string>(pnh_, "state_file", log_dir_ + "/running_nodes.yaml"));
   clear_params_ = param(pnh_, "clear_params", true);
   sample_period_s_ = 1.0 / positive(pnh_, "sample_rate_hz", 2.0);
   warm_start_ = param(pnh_, "warm_start", true);
@@ -171,8 +179,57 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   diagnostics_.add("topics", this, &AgentNode::diagnoseTopics);
 
   sampler_.sample(steadyNow(), {});
-  ROS_INFO("anyscale agent of scale '%s'%s: %zu nodes declared in %s, logs in %s", scale_.c_str(),
-           is_master_ ? " (master)" : "", model_.names().size(), model_path_.c_str(), log_dir_.c_str());
+  ROS_INFO("anyscale agent of scale '%s'%s: %zu nodes declared in %s, logs in %s; nodes %s", scale_.c_str(),
+           is_master_ ? " (master)" : "", model_.names().size(), model_path_.c_str(), log_dir_.c_str(),
+           supervisor_.options().parent_death_signal ? "die with this agent" : "outlive this agent if it is killed");
+}
+
+void AgentNode::adoptNodes(const std::string& state_file)
+{
+  const AdoptionReport report = supervisor_.adopt(state_file);
+  if (!report.warning.empty())
+    ROS_WARN("%s", report.warning.c_str());
+  for (const auto& line : report.dropped)
+    ROS_WARN("not adopted from %s: %s", state_file.c_str(), line.c_str());
+  const double now = steadyNow();
+  for (const auto& a : report.adopted)
+  {
+    const ProcessInfo& p = a.info;
+    const NodeDecl* decl = model_.find(p.name);
+    if (!decl)
+    {
+      // The model is what may run here; this agent would never have started it.
+      ROS_WARN("adopted %s (pid %d) is not declared in %s: stopping it", p.name.c_str(), p.pid, model_path_.c_str());
+      supervisor_.stop(p.name);
+      continue;
+    }
+    ROS_INFO("adopted %s (pid %d, %s), left running by the agent before this one; log %s", p.name.c_str(), p.pid,
+             toString(p.state), p.log_file.c_str());
+    // Its start boost may have been under way when the predecessor died, and nobody would end it.
+    std::string error;
+    if (p.state != ProcState::Stopping && !setProcessNice(p.pid, decl->nice, &error))
+      ROS_WARN("adopted %s: cannot set its nice to %d: %s", p.name.c_str(), decl->nice, error.c_str());
+    if (a.lease_end_s <= 0.0 || p.state == ProcState::Stopping)
+      continue;
+    if (a.lease_end_s <= now)
+    {
+      // It ran on past its lease while no agent watched it: what the lease exists to prevent.
+      ROS_WARN("adopted %s: its lease ended %.1f s ago, while no agent ran: stopping it", p.name.c_str(),
+               now - a.lease_end_s);
+      supervisor_.stop(p.name, ProcState::LeaseExpired);
+      continue;
+    }
+    grantLease(p.name, a.lease_end_s - now);
+  }
+}
+
+void AgentNode::grantLease(const std::string& name, double lease_s)
+{
+  std::lock_guard<std::mutex> lock(leases_mutex_);
+  leases_.grant(name, steadyNow(), lease_s);
+  // In the state file too, so that a successor enforces it (the steady clock is the system's
+  // CLOCK_MONOTONIC, the same in every process of a boot).
+  supervisor_.setLeaseEnds({ { name, leases_.expiry(name).value_or(0.0) } });
 }
 
 AgentNode::~AgentNode()
@@ -220,6 +277,8 @@ void AgentNode::onSupervise(const ros::SteadyTimerEvent&)
   for (const auto& name : expired)
     if (supervisor_.stop(name, ProcState::LeaseExpired))
       ROS_WARN("lease of %s expired: stopping it", name.c_str());
+  for (const auto& note : supervisor_.takeStateFileNotes())
+    ROS_WARN("%s", note.c_str());
   // Here, not with the master queries: a standby is most needed right after a partition, when
   // those queries hang on the unreachable master.
   keepStandbysReady();
@@ -257,6 +316,12 @@ void AgentNode::onGraph(const ros::SteadyTimerEvent&)
     {
       supervisor_.setFinalState(name, ProcState::Replaced);
       ROS_WARN("%s exited: its name was taken by a node on %s (pid %d)", name.c_str(), reg->host.c_str(), reg->pid);
+    }
+    else if (info && info->adopted && info->exit_code == -1 && info->exit_signal == 0)
+    {
+      ROS_WARN("%s exited by itself (exit status unknown: it was started by the agent before this one, so it is "
+               "not this agent's child); log: %s",
+               name.c_str(), info->log_file.c_str());
     }
     else if (info)
     {

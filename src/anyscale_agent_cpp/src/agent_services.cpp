@@ -104,8 +104,7 @@ void AgentNode::startNode(const anyscale_msgs::StartNode::Request& req, anyscale
       if (const int pid = supervisor_.resume(name, &error); pid > 0)
       {
         setStartPriority(name, pid, decl->nice);
-        std::lock_guard<std::mutex> lock(leases_mutex_);
-        leases_.grant(name, steadyNow(), req.lease_s);
+        grantLease(name, req.lease_s);
         res.success = true;
         res.pid = pid;
         res.message = "resumed the paused instance of " + name + " (pid " + std::to_string(pid) + ")";
@@ -133,8 +132,7 @@ void AgentNode::startNode(const anyscale_msgs::StartNode::Request& req, anyscale
     {
       // Starting is idempotent: the decision node asks for a node where it must run, and a
       // planned move that a link loss interrupts asks for the old instance it had not stopped.
-      std::lock_guard<std::mutex> lock(leases_mutex_);
-      leases_.grant(name, steadyNow(), req.lease_s);
+      grantLease(name, req.lease_s);
       res.success = true;
       res.pid = running->pid;
       res.message = name + " is already running here (pid " + std::to_string(running->pid) + ")";
@@ -161,10 +159,7 @@ void AgentNode::startNode(const anyscale_msgs::StartNode::Request& req, anyscale
     return;
   }
   setStartPriority(name, pid, decl->nice);
-  {
-    std::lock_guard<std::mutex> lock(leases_mutex_);
-    leases_.grant(name, steadyNow(), req.lease_s);
-  }
+  grantLease(name, req.lease_s);
   res.success = true;
   res.pid = pid;
   res.message = std::string(warm ? "activated the warm standby of " : "started ") + name + " (pid " +
@@ -280,6 +275,7 @@ void AgentNode::renewLeases(const anyscale_msgs::RenewLeases::Request& req, anys
     return;
   }
   std::vector<std::string> without_lease;
+  std::map<std::string, double> renewed;
   const double now = steadyNow();
   std::lock_guard<std::mutex> lock(leases_mutex_);
   for (const auto& node : req.nodes)
@@ -295,7 +291,13 @@ void AgentNode::renewLeases(const anyscale_msgs::RenewLeases::Request& req, anys
     {
       without_lease.push_back(node);  // runs without a lease; renewing must not impose one
     }
+    else
+    {
+      renewed[name] = *leases_.expiry(name);
+    }
   }
+  // One write of the state file for the whole renewal, so that a successor enforces them.
+  supervisor_.setLeaseEnds(renewed);
   res.message = res.success ? "renewed" : "not running here: " + joinQuoted(res.not_running);
   if (!without_lease.empty())
     res.message += "; running without a lease, unchanged: " + joinQuoted(without_lease);

@@ -93,6 +93,14 @@ bool Supervisor::stopStandby(const std::string& name)
 bool Supervisor::stop(const std::string& name, ProcState final_state, double kill_after_s)
 {
   std::lock_guard<std::mutex> lock(mutex_);
+  const bool stopping = stopLocked(name, final_state, kill_after_s);
+  if (stopping)
+    saveStateLocked();
+  return stopping;
+}
+
+bool Supervisor::stopLocked(const std::string& name, ProcState final_state, double kill_after_s)
+{
   auto it = records_.find(name);
   if (it == records_.end() || !isAlive(it->second))
     return false;
@@ -134,6 +142,7 @@ bool Supervisor::pause(const std::string& name, std::string* error)
     return false;
   }
   it->second.info.state = ProcState::Paused;
+  saveStateLocked();
   return true;
 }
 
@@ -153,6 +162,7 @@ int Supervisor::resume(const std::string& name, std::string* error)
     return 0;
   }
   it->second.info.state = ProcState::Running;
+  saveStateLocked();
   return it->second.info.pid;
 }
 
@@ -195,34 +205,52 @@ void Supervisor::escalate(Group& g, Clock::time_point now)
 
 void Supervisor::reapLocked()
 {
+  bool node_exited = false;
   for (;;)
   {
     int status = 0;
-    // -1: with the subreaper flag, orphaned members of node groups become our children too.
+    // -1: with the subreaper flag, orphaned members of node groups become our children too
+    // (an adopted node among them, if its agent died while it was our ancestor).
     const pid_t pid = ::waitpid(-1, &status, WNOHANG);
     if (pid <= 0)
       break;
     for (auto* slots : {&records_, &standbys_})
       for (auto& [name, r] : *slots)
-      {
-        if (r.info.pid != pid)
-          continue;
-        // A standby that ended was never a node, and a paused one is not the node's instance
-        // in use (it runs on another scale): nothing for the node-exit handling to do.
-        const bool not_in_use = r.info.state == ProcState::Standby || r.info.state == ProcState::Paused;
-        r.info.pid = 0;
-        r.info.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-        r.info.exit_signal = WIFSIGNALED(status) ? WTERMSIG(status) : 0;
-        r.info.state = r.info.stop_requested ? r.final_state : ProcState::Exited;
-        r.activation.reset();
-        if (!r.info.stop_requested && !not_in_use)
-          unrequested_exits_.push_back(name);
-        // Members that outlive the leader are cleared the same way, continuing its sequence.
-        if (groupExists(r.group.pgid))
-          orphan_groups_.push_back(r.group);
-        changed_.notify_all();
-      }
+        if (r.info.pid == pid)
+        {
+          recordExitLocked(name, r, WIFEXITED(status) ? WEXITSTATUS(status) : -1,
+                           WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+          node_exited |= slots == &records_;
+        }
   }
+  // Adopted nodes are not our children: waitpid() never reports them.
+  for (auto& [name, r] : records_)
+    if (isAlive(r) && r.info.adopted && adoptedExited(r))
+    {
+      recordExitLocked(name, r, -1, 0);
+      node_exited = true;
+    }
+  if (node_exited)
+    saveStateLocked();
+}
+
+void Supervisor::recordExitLocked(const std::string& name, Record& r, int exit_code, int exit_signal)
+{
+  // A standby that ended was never a node, and a paused one is not the node's instance
+  // in use (it runs on another scale): nothing for the node-exit handling to do.
+  const bool not_in_use = r.info.state == ProcState::Standby || r.info.state == ProcState::Paused;
+  r.info.pid = 0;
+  r.info.exit_code = exit_code;
+  r.info.exit_signal = exit_signal;
+  r.info.state = r.info.stop_requested ? r.final_state : ProcState::Exited;
+  r.activation.reset();
+  r.pidfd.reset();
+  if (!r.info.stop_requested && !not_in_use)
+    unrequested_exits_.push_back(name);
+  // Members that outlive the leader are cleared the same way, continuing its sequence.
+  if (groupExists(r.group.pgid))
+    orphan_groups_.push_back(r.group);
+  changed_.notify_all();
 }
 
 void Supervisor::poll()
@@ -267,7 +295,10 @@ void Supervisor::markRunning(const std::string& name)
   std::lock_guard<std::mutex> lock(mutex_);
   auto it = records_.find(name);
   if (it != records_.end() && it->second.info.state == ProcState::Starting)
+  {
     it->second.info.state = ProcState::Running;
+    saveStateLocked();
+  }
 }
 
 bool Supervisor::setFinalState(const std::string& name, ProcState state)

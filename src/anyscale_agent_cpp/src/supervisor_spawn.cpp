@@ -10,6 +10,7 @@
 #include <cstring>
 
 #include "anyscale_agent_cpp/child_process.h"
+#include "anyscale_agent_cpp/proc_reader.h"
 
 namespace anyscale_agent
 {
@@ -108,7 +109,15 @@ int Supervisor::launch(const std::string& name, const std::vector<std::string>& 
   r.info.started = Clock::now();
   r.group = Group{pid, 0, Clock::time_point::max()};
   r.activation = std::move(activation);
+  r.argv = argv;
+  // Set at fork and kept through exec: a successor tells this process from a later one with
+  // the same pid by it. 0 if it ended already (then there is nothing to adopt anyway).
+  if (const auto text = readFile("/proc/" + std::to_string(pid) + "/stat"))
+    if (const auto stat = parseProcStat(*text))
+      r.start_time = stat->start_time;
   slots[name] = std::move(r);
+  if (!standby)
+    saveStateLocked();
   changed_.notify_all();
   return pid;
 }
@@ -137,6 +146,7 @@ int Supervisor::activate(const std::string& name, std::string* error)
   const int pid = r.info.pid;
   records_[name] = std::move(r);  // the standby is the node now
   standbys_.erase(it);
+  saveStateLocked();
   changed_.notify_all();
   return pid;
 }

@@ -224,6 +224,54 @@ class AgentServicesTest(unittest.TestCase):
                     agent_proc.kill()
                     agent_proc.wait()
 
+    def test_a_restarted_master_agent_adopts_the_nodes_a_killed_one_left(self):
+        # On the master scale nodes outlive a SIGKILLed agent; the next agent adopts them: listed
+        # as running with their pids, started "again" without a second process, stopped.
+        scale = "restart"
+        state_file = "/tmp/anyscale_agent_test_restart_%d.yaml" % os.getpid()
+        self.addCleanup(lambda: os.path.exists(state_file) and os.remove(state_file))
+        command = [self._agent_binary(), "__name:=anyscale_agent_" + scale, "_scale:=" + scale,
+                   "_is_master:=true", "_model:=" + MODEL, "_sigint_timeout_s:=3.0", "_warm_start:=false",
+                   "_state_file:=" + state_file]
+
+        def listed(agent, name):
+            try:
+                return agent.node(name)
+            except (rospy.ServiceException, rospy.ROSException):
+                return None  # the killed agent's services stay registered until the next one's
+
+        agents = [subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+        pid = None
+        try:
+            first = Agent(scale)
+            res = first.start(node="talker_cpp", param_overrides=[], lease_s=0.0)
+            self.assertTrue(res.success, res.message)
+            pid = res.pid
+            self.assertEqual(wait_for(lambda: registered_pid("/talker_cpp"), 20.0), pid)
+            agents[0].kill()
+            agents[0].wait(timeout=30)
+            time.sleep(1.0)
+            self.assertTrue(alive(pid), "a node of the master scale died with its agent")
+
+            agents.append(subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+            second = Agent(scale)
+            node = wait_for(lambda: (n := listed(second, "/talker_cpp")) and n.state == NodeProcess.RUNNING and n,
+                            20.0)
+            self.assertTrue(node, "not adopted")
+            self.assertEqual(node.pid, pid)
+            again = second.start(node="talker_cpp", param_overrides=[], lease_s=0.0)
+            self.assertEqual((again.success, again.pid), (True, pid), again.message)
+            stop = second.stop(node="talker_cpp", wait=True)
+            self.assertTrue(stop.success, stop.message)
+            self.assertFalse(alive(pid))
+        finally:
+            for proc in agents:
+                if proc.poll() is None:
+                    proc.kill()
+                    proc.wait()
+            if pid and alive(pid):
+                os.kill(pid, signal.SIGKILL)
+
     def test_bad_model_is_a_clear_error(self):
         no_nodes = "/tmp/anyscale_agent_test_no_nodes_%d.yaml" % os.getpid()
         with open(no_nodes, "w") as f:

@@ -65,6 +65,10 @@ private:
   void onGraph(const ros::SteadyTimerEvent&);       // master queries: registration, local topics
   void onUplink(const ros::SteadyTimerEvent&);      // carrier of ~uplink_interface; status on change
   void applyUplink(anyscale_msgs::LinkStatistics& link) const;
+  // The nodes a killed predecessor left running (~state_file): adopted, with their leases.
+  void adoptNodes(const std::string& state_file);
+  // Grants (lease_s > 0) or drops the lease of `name`, also in the supervisor's state file.
+  void grantLease(const std::string& name, double lease_s);
   // The node's launch.nice, with ~start_boost_nice added for its first ~start_boost_s.
   void setStartPriority(const std::string& name, int pid, int nice);
   void endBoosts();  // on the supervision thread

@@ -1,9 +1,12 @@
 // Process supervisor: node processes in their own session and process group. Staged stop and
-// reaping are in supervisor.cpp; starts, warm standbys and their activation in supervisor_spawn.cpp.
+// reaping are in supervisor.cpp; starts, warm standbys and their activation in supervisor_spawn.cpp;
+// the state file and the adoption of a predecessor's nodes in supervisor_adopt.cpp.
 #pragma once
 
-#include <chrono>
 #include <signal.h>
+
+#include <chrono>
+#include <cstdint>
 
 #include <condition_variable>
 #include <functional>
@@ -42,6 +45,22 @@ struct ProcessInfo
   bool stop_requested = false;
   std::string log_file;
   std::chrono::steady_clock::time_point started;
+  // Taken over from the agent before this one (adopt()): not our child, so its exit status is
+  // unknown (exit_code -1, exit_signal 0) unless it was re-parented to us.
+  bool adopted = false;
+};
+
+// What adopt() found in the state file a predecessor left.
+struct AdoptionReport
+{
+  struct Adopted
+  {
+    ProcessInfo info;
+    double lease_end_s = 0.0;  // CLOCK_MONOTONIC seconds; 0: it ran without a lease
+  };
+  std::vector<Adopted> adopted;
+  std::vector<std::string> dropped;  // one line per entry not adopted: name, pid and why
+  std::string warning;               // the file could not be used, or cannot be written
 };
 
 struct SupervisorOptions
@@ -57,8 +76,12 @@ struct SupervisorOptions
   // on a remote scale must not outlive the agent that enforces its lease. SIGKILL, because a
   // handled signal may never end the node: rospy runs its shutdown inside the SIGTERM handler
   // on the main thread, and a rospy talker caught in publish() that way was seen blocked on a
-  // futex for good, ignoring even the master's shutdown request. 0 disables it.
+  // futex for good, ignoring even the master's shutdown request. 0 disables it: the agent does
+  // so on the master scale (~nodes_outlive_agent), whose nodes its successor adopts (adopt()).
   int parent_death_signal = SIGKILL;
+  // Watch adopted nodes with pidfd_open(2) (Linux >= 5.3). False, or a kernel without it
+  // (ENOSYS): /proc/PID/stat is read at every poll() instead. A switch for the tests.
+  bool use_pidfd = true;
 };
 
 class Supervisor
@@ -130,6 +153,19 @@ public:
   // Stops all processes and waits for them; used on shutdown.
   void stopAll();
 
+  // Reads the state file a predecessor left at `state_file` and adopts each node in it whose
+  // process still runs: same pid, same start time, same command line. An adopted node is a
+  // node like any other (stop, pause, list, exits) except that it is not our child. From then
+  // on the file lists the running nodes, rewritten on every change. Call it once, before any
+  // start. Never throws: an unusable file is a warning and adopts nothing.
+  AdoptionReport adopt(const std::string& state_file);
+  // The lease ends of running nodes (CLOCK_MONOTONIC seconds, 0: none), kept in the state
+  // file so that a successor enforces them.
+  void setLeaseEnds(const std::map<std::string, double>& lease_ends);
+  // Changes in the state file's health since the last call (a write failed, or works again),
+  // one line each, for the caller to log.
+  std::vector<std::string> takeStateFileNotes();
+
   const SupervisorOptions& options() const { return options_; }
 
 private:
@@ -145,10 +181,19 @@ private:
     ProcState final_state = ProcState::Exited;
     Group group;
     UniqueFd activation;  // the agent's end of a standby's stdin
+    // For the state file: what a successor checks before it adopts the process.
+    std::vector<std::string> argv;
+    uint64_t start_time = 0;  // /proc/PID/stat field 22
+    double lease_end_s = 0.0;
+    UniqueFd pidfd;  // an adopted node's pidfd (-1: watched through /proc)
   };
   static bool isAlive(const Record& r);
   void escalate(Group& g, std::chrono::steady_clock::time_point now);
   void reapLocked();
+  bool stopLocked(const std::string& name, ProcState final_state, double kill_after_s);
+  void recordExitLocked(const std::string& name, Record& r, int exit_code, int exit_signal);
+  bool adoptedExited(const Record& r) const;
+  void saveStateLocked();
   int launch(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
              bool standby, std::string* error);
   void spawnerLoop();
@@ -160,6 +205,10 @@ private:
   std::map<std::string, Record> standbys_;  // their warm standbys
   std::vector<Group> orphan_groups_;  // leaders gone, members remain
   std::vector<std::string> unrequested_exits_;
+  std::string state_file_;  // empty until adopt(): no state file
+  std::string boot_id_;
+  std::string state_file_error_;  // the last write's failure, "" while writes work
+  std::vector<std::string> state_file_notes_;
 
   // All forks happen on this one thread: the parent-death signal fires when the *thread* that
   // forked ends, and ROS spinner threads end before the agent has stopped its children.

@@ -12,6 +12,9 @@ cd "$ANYSCALE_ROOT" || exit 2
 # shellcheck disable=SC1091
 source scripts/setup.sh || exit 1
 
+for arg in "$@"; do
+  case "$arg" in -h|--help) exec /usr/bin/python3 scripts/run_testbed.py --help ;; esac
+done
 echo "=== The test bed's system model (paper Tables I and II)"
 anyscale check "$(rospack find anyscale_nav_demo)/config/testbed.yaml" || exit 1
 echo

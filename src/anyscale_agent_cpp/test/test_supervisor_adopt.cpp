@@ -45,6 +45,14 @@ struct ForeignNode
       const pid_t node = ::fork();
       if (node == 0)
       {
+        // As spawnChild sets up a node: default dispositions and an empty mask. A test run in
+        // the background of a non-interactive shell inherits SIGINT ignored, and a node that
+        // ignores it outlasts a stop's SIGINT phase.
+        for (const int sig : { SIGINT, SIGTERM, SIGQUIT, SIGHUP })
+          ::signal(sig, SIG_DFL);
+        sigset_t none;
+        ::sigemptyset(&none);
+        ::sigprocmask(SIG_SETMASK, &none, nullptr);
         ::setsid();
         ::execv(cargv[0], cargv.data());
         ::_exit(127);

@@ -2,6 +2,7 @@
 #include "anyscale_agent_cpp/agent_node.h"
 
 #include <ros/package.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -50,6 +51,8 @@ SupervisorOptions supervisorOptions(const ros::NodeHandle& pnh)
   // that already started its own instance would see two.
   if (param(pnh, "nodes_outlive_agent", param(pnh, "is_master", false)))
     o.parent_death_signal = 0;
+  // Read before the agent raises its own priority (AgentNode's constructor, ~control_nice).
+  o.child_nice = ::getpriority(PRIO_PROCESS, 0);
   return o;
 }
 
@@ -116,6 +119,7 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
     throw std::runtime_error("parameter ~start_boost_nice must be a nice value from -20 to 0 (0: no boost), got " +
                              std::to_string(start_boost_nice));
   boosts_ = StartBoosts(start_boost_nice, positive(pnh_, "start_boost_s", 3.0));
+  raiseControlPriority(param(pnh_, "control_nice", 0));
 
   topics_ = std::make_unique<TopicWatcher>(nh_, positive(pnh_, "rate_window_s", 2.0),
                                            std::max(1, param(pnh_, "topic_queue_size", 50)),
@@ -333,6 +337,21 @@ void AgentNode::onGraph(const ros::SteadyTimerEvent&)
   }
   if (const auto local = graph_.localSubscribedTopics(own))
     topics_->update(*local);
+}
+
+void AgentNode::raiseControlPriority(int control_nice)
+{
+  if (control_nice < -20 || control_nice > 0)
+    throw std::runtime_error("parameter ~control_nice must be a nice value from -20 to 0 (0: the priority it was "
+                             "started at), got " + std::to_string(control_nice));
+  // On a robot held at its CPU quota, a stop, a resume or a status answered late is a node's
+  // output silent for longer: the agent's own work is small, so a raised priority costs the
+  // nodes little and answers its calls ahead of them. Its nodes start at the priority it had
+  // before (SupervisorOptions::child_nice).
+  std::string error;
+  if (control_nice != 0 && !setProcessNice(::getpid(), control_nice, &error))
+    ROS_WARN("cannot run the agent at nice %d (%s)%s; it runs at its nodes' priority", control_nice,
+             error.c_str(), ": raising a priority needs CAP_SYS_NICE");
 }
 
 void AgentNode::setStartPriority(const std::string& name, int pid, int nice)

@@ -1,9 +1,10 @@
-// fork/exec of a node process: new session, stdio redirected, signals reset, agent fds closed.
+// fork/exec of a node process: new session, stdio redirected, signals and nice reset, agent fds closed.
 #include "anyscale_agent_cpp/child_process.h"
 
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/prctl.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -24,7 +25,8 @@ int failSpawn(std::string* error, const std::string& why)
 }
 }  // namespace
 
-int spawnChild(const std::vector<std::string>& argv, int stdin_fd, int log_fd, int death_signal, std::string* error)
+int spawnChild(const std::vector<std::string>& argv, int stdin_fd, int log_fd, int death_signal, int nice,
+               std::string* error)
 {
   int pipe_fds[2];
   if (::pipe2(pipe_fds, O_CLOEXEC) != 0)
@@ -58,6 +60,10 @@ int spawnChild(const std::vector<std::string>& argv, int stdin_fd, int log_fd, i
     sigset_t none;
     sigemptyset(&none);
     ::sigprocmask(SIG_SETMASK, &none, nullptr);
+    // Not the forking thread's nice: the agent may run at a raised priority (~control_nice)
+    // so that its calls are answered on a CPU-starved robot, and a node that inherited it would
+    // compete with the agent at its level. Lowering one's own priority needs no privilege.
+    ::setpriority(PRIO_PROCESS, 0, nice);
     ::dup2(stdin_fd, STDIN_FILENO);
     ::dup2(log_fd, STDOUT_FILENO);
     ::dup2(log_fd, STDERR_FILENO);

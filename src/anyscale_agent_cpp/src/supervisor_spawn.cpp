@@ -91,7 +91,8 @@ int Supervisor::launch(const std::string& name, const std::vector<std::string>& 
     spawn_cv_.wait(spawn_lock, [this] { return !spawn_job_; });
     bool done = false;
     spawn_job_ = [&] {
-      child_pid = spawnChild(argv, child_stdin.get(), log.get(), options_.parent_death_signal, error);
+      child_pid = spawnChild(argv, child_stdin.get(), log.get(), options_.parent_death_signal, options_.child_nice,
+                             error);
       done = true;
     };
     spawn_cv_.notify_all();

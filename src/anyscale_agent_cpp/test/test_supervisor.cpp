@@ -2,6 +2,7 @@
 // Its warm standbys are tested in test_supervisor_standby.cpp.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -11,6 +12,7 @@
 #include <string>
 #include <thread>
 
+#include "anyscale_agent_cpp/process_priority.h"
 #include "anyscale_agent_cpp/supervisor.h"
 #include "supervisor_test_util.h"
 
@@ -191,6 +193,45 @@ TEST(Supervisor, OutputGoesToTheLogFile)
   EXPECT_NE(out.find("hello-out"), std::string::npos);
   EXPECT_NE(out.find("hello-err"), std::string::npos);
   EXPECT_EQ(s.info("echo")->log_file, log);
+}
+
+namespace
+{
+// The nice of a node the supervisor starts when the supervisor was made on a thread running at
+// `agent_nice` (nice is per thread on Linux, and the supervisor's spawn thread inherits it).
+std::vector<int> nicesOfNodeStartedAt(int agent_nice, int child_nice)
+{
+  std::vector<int> nices;
+  std::thread agent([&] {
+    if (::setpriority(PRIO_PROCESS, 0, agent_nice) != 0)
+      return;
+    SupervisorOptions o;
+    o.child_nice = child_nice;
+    Supervisor s(o);
+    std::string err;
+    const int pid = s.start("niced", {"/bin/sleep", "30"}, tempLog("niced"), &err);
+    if (pid > 0)
+      nices = threadNices(pid);
+  });
+  agent.join();
+  return nices;
+}
+}  // namespace
+
+TEST(Supervisor, NodesStartAtTheChildNiceNotTheAgents)
+{
+  const int base = ::getpriority(PRIO_PROCESS, 0);
+  if (base > 12)
+    GTEST_SKIP() << "the test runs at nice " << base << ": no room to set two higher values";
+  // Raising a nice value needs no privilege: an agent at base + 2, its node at base + 5.
+  EXPECT_EQ(nicesOfNodeStartedAt(base + 2, base + 5), std::vector<int>{ base + 5 });
+}
+
+TEST(Supervisor, NodesDoNotInheritTheAgentsRaisedPriority)
+{
+  if (::geteuid() != 0)
+    GTEST_SKIP() << "a negative nice (the agent's ~control_nice) needs root (CAP_SYS_NICE)";
+  EXPECT_EQ(nicesOfNodeStartedAt(-4, 0), std::vector<int>{ 0 });
 }
 
 TEST(Supervisor, DestructorStopsEverything)

@@ -127,6 +127,11 @@ def test_params_defaults_and_errors():
     assert p.engine.weak_link_mbps == 0.0
     with pytest.raises(ParamError, match="~bandwidth_stay_margin .0.4. must not exceed"):
         read_params(params(model="/m.yaml", bandwidth_stay_margin=0.4))
+    assert p.control_nice == 0
+    assert read_params(params(model="/m.yaml", control_nice=-5)).control_nice == -5
+    for bad in (3, -21, 1.5, "high", True):
+        with pytest.raises(ParamError, match="~control_nice: expected a nice value"):
+            read_params(params(model="/m.yaml", control_nice=bad))
 
 
 def test_scale_report_names_the_nodes_that_ended_and_how():

@@ -70,6 +70,7 @@ private:
   // Grants (lease_s > 0) or drops the lease of `name`, also in the supervisor's state file.
   void grantLease(const std::string& name, double lease_s);
   // The node's launch.nice, with ~start_boost_nice added for its first ~start_boost_s.
+  void raiseControlPriority(int control_nice);
   void setStartPriority(const std::string& name, int pid, int nice);
   void endBoosts();  // on the supervision thread
 

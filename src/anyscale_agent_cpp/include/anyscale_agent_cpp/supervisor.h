@@ -82,6 +82,9 @@ struct SupervisorOptions
   // Watch adopted nodes with pidfd_open(2) (Linux >= 5.3). False, or a kernel without it
   // (ENOSYS): /proc/PID/stat is read at every poll() instead. A switch for the tests.
   bool use_pidfd = true;
+  // The nice a node starts at: the agent's own before it raised its priority (~control_nice),
+  // so that a node declared at nice 0 keeps the priority the user gave the whole stack.
+  int child_nice = 0;
 };
 
 class Supervisor

@@ -23,6 +23,7 @@ from .cost import perf
 from .decision_engine import DecisionEngine, DecisionParams, RenewLeases, StartNode
 from .model import ModelError
 from .model_loader import load_model
+from .process_priority import set_own_nice
 from .restart_backoff import BackoffParams
 
 # A remote scale's status silent this long while the robot's uplink is up: a new connection.
@@ -45,6 +46,7 @@ class NodeParams:
     stop_sigint_timeout_s: float
     handover_timeout_s: float
     handover_messages: int
+    control_nice: int
 
 
 def read_params(get=rospy.get_param) -> NodeParams:
@@ -82,12 +84,17 @@ def read_params(get=rospy.get_param) -> NodeParams:
         raise ParamError(f"~bandwidth_stay_margin ({engine.bandwidth_stay_margin:g}) must not "
                          f"exceed ~bandwidth_margin ({engine.bandwidth_margin:g}): a node would "
                          f"come back as soon as it moved out")
+    control_nice = get("~control_nice", 0)
+    if not isinstance(control_nice, int) or isinstance(control_nice, bool) \
+            or not -20 <= control_nice <= 0:
+        raise ParamError(f"~control_nice: expected a nice value from -20 to 0 (0: the priority "
+                         f"it was started at), got {control_nice!r}")
     return NodeParams(model, str(get("~allocator", "paper")), number("period_s", 1.0, 0.05),
                       engine, number("service_timeout_s", 5.0, 0.1),
                       number("stop_timeout_s", 20.0, 0.1), number("adopt_wait_s", 5.0),
                       number("stop_sigint_timeout_s", 0.5),
                       number("handover_timeout_s", 20.0, 0.1),
-                      int(number("handover_messages", 3, 1)))
+                      int(number("handover_messages", 3, 1)), control_nice)
 
 
 def prepare_decision(model_path: str, allocator_name: str):
@@ -365,6 +372,18 @@ class DecisionNode(AgentActions):
         return stat
 
 
+def raise_control_priority(nice: int):
+    """On a robot held at its CPU quota, a decision taken late is a node's output silent for
+    longer (a return after a link loss waits for this node's tick and calls): its work is
+    small, so a raised priority costs the nodes little and takes its ticks ahead of them."""
+    if nice == 0:
+        return
+    error = set_own_nice(nice)
+    if error:
+        rospy.logwarn("anyscale decision: cannot run at nice %d (%s: raising a priority needs "
+                      "CAP_SYS_NICE); it runs at the nodes' priority", nice, error)
+
+
 def main(argv=None) -> int:
     """Entry point of nodes/decision_node: exit 1 with one FATAL line on bad params or model."""
     rospy.init_node("anyscale_decision", argv=argv)
@@ -373,5 +392,6 @@ def main(argv=None) -> int:
     except (ParamError, ModelError) as e:
         rospy.logfatal("anyscale decision: %s", e)
         return 1
+    raise_control_priority(node.params.control_nice)
     node.run()
     return 0

@@ -50,8 +50,8 @@ def test_the_workspace_calibration_has_a_reference():
     assert 10.0 < calibrated_reference_ms(path) < 25.0
 
 
-def test_the_start_line_states_the_workload_and_the_quotas_set():
-    from anyscale_testbed.demo_run import normaliser_state
+def test_the_start_line_states_the_quotas_and_when_they_start_to_follow_the_host():
+    from anyscale_testbed.demo_run import NORMALISE_SETTLE_S, normaliser_state
     from anyscale_testbed.host_speed import CpuNormaliser
 
     class Quota:
@@ -59,7 +59,8 @@ def test_the_start_line_states_the_workload_and_the_quotas_set():
             pass
 
     n = CpuNormaliser({"robot": Quota(), "laptop": Quota()}, {"robot": 0.34, "laptop": 0.9},
-                      15.5, measure=lambda: 17.05, log=lambda line: None)
-    n.tick()
-    assert normaliser_state(n) == ("host speed: workload 17.1 ms of CPU now (calibrated at "
-                                   "15.5 ms): CPU quota robot 0.374, laptop 0.990 cores")
+                      15.5, measure=lambda: 17.05, log=lambda line: None,
+                      settle_s=NORMALISE_SETTLE_S)
+    assert normaliser_state(n) == ("host speed: CPU quota robot 0.340, laptop 0.900 cores, as "
+                                   "calibrated, until the nodes have run 30 s; then every 5 s, "
+                                   "from the workload's median CPU ms (calibrated at 15.5 ms)")

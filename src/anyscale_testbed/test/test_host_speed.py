@@ -224,3 +224,27 @@ def test_set_cores_rewrites_the_quota_of_an_existing_group(tmp_path):
     assert (tmp_path / "anyscale_robot" / "cpu.cfs_period_us").read_text() == "100000"
     q.set_cores(0)
     assert quota_file.read_text() == "-1"
+
+
+def test_the_first_settle_s_make_no_median_and_then_none_of_fewer_than_initial_samples():
+    # An idle host's 10.5 ms before the nodes load it must not set the quotas (issue 13's
+    # first --normalise-cpu run: 10.4 ms, then the robot at 0.22-0.29 cores, AMCL 1.58 Hz).
+    clock, quota = FakeClock(), FakeQuota()
+    values = iter([10.5, 10.5, 16.0, 16.0, 16.0, 16.0])
+    n = CpuNormaliser({"robot": quota}, {"robot": 0.34}, reference_cpu_ms=16.0, window=12,
+                      initial_samples=3, measure=lambda: next(values), clock=clock,
+                      log=lambda line: None, settle_s=30.0)
+    n.start()           # no measurement at once: the scales are not loaded yet
+    n.stop()
+    medians = []
+    for _ in range(6):
+        clock.t += 10
+        medians.append(n.tick())
+    assert medians == [None, None, None, None, 16.0, 16.0]    # settled at t+30, 3 samples
+    assert n.samples == [10.5, 10.5, 16.0, 16.0, 16.0, 16.0]
+    assert quota.set == pytest.approx([0.34, 0.34])
+
+
+def test_a_negative_settle_time_is_refused():
+    with pytest.raises(ValueError, match="settle time"):
+        HostSpeedMonitor(settle_s=-1.0)

@@ -119,14 +119,25 @@ def normalised_cores(calibrated_cores: float, reference_cpu_ms: float, measured_
 class HostSpeedMonitor:
     """Every `period_s`, runs the workload on a thread of its own and keeps the rolling median
     of its CPU ms (`medians`: (t, median) per measurement). start() measures `initial_samples`
-    times at once, so the first median is not one measurement; stop() ends the thread."""
+    times at once (after settle_s: waits for as many), so the first median is not one
+    measurement; stop() ends the thread.
+
+    With `settle_s` > 0, the measurements of the first settle_s after start() are kept in
+    `samples` but make no median: the workload's CPU ms depends on what else loads the host
+    (the other vCPU's work shares caches and memory bandwidth: 10.2-10.7 ms between two
+    test-bed runs, 15-16 ms during one), so a median taken before the scales' nodes run says
+    how fast an idle host is, not the loaded one the reference was measured on."""
 
     def __init__(self, period_s: float = 5.0, window: int = 12, initial_samples: int = 3,
                  measure: Callable[[], float] = workload_cpu_ms,
                  clock: Callable[[], float] = time.time,
-                 log: Callable[[str], None] = print):
+                 log: Callable[[str], None] = print, settle_s: float = 0.0):
         if period_s <= 0:
             raise ValueError(f"period must be positive, got {period_s}")
+        if settle_s < 0:
+            raise ValueError(f"settle time must not be negative, got {settle_s}")
+        self.settle_s = settle_s
+        self.settled_at = -float("inf")
         self.period_s = period_s
         self.median = RollingMedian(window)
         self.initial_samples = max(1, initial_samples)
@@ -139,13 +150,18 @@ class HostSpeedMonitor:
         self._stop = threading.Event()
         self._thread: Optional[threading.Thread] = None
 
-    def tick(self) -> float:
-        """One measurement: the median updated, then on_median. Returns the median."""
+    def tick(self) -> Optional[float]:
+        """One measurement: the median updated, then on_median. Returns the median, None
+        while settling."""
         ms = self.measure()
         t = self.clock()
         with self._lock:
             self.samples.append(ms)
+            if t < self.settled_at:
+                return None
             median = self.median.add(ms)
+            if self.settle_s > 0 and len(self.median) < self.initial_samples:
+                return None     # after settling: no median of one measurement either
             self.medians.append((t, median))
             self.on_median(t, median)
         return median
@@ -154,11 +170,14 @@ class HostSpeedMonitor:
         """What a new median does (with the lock held); nothing here."""
 
     def start(self):
-        for _ in range(self.initial_samples - 1):
-            with self._lock:
-                self.samples.append(self.measure())
-                self.median.add(self.samples[-1])
-        self.tick()
+        if self.settle_s > 0:
+            self.settled_at = self.clock() + self.settle_s
+        else:
+            for _ in range(self.initial_samples - 1):
+                with self._lock:
+                    self.samples.append(self.measure())
+                    self.median.add(self.samples[-1])
+            self.tick()
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="host_speed", daemon=True)
         self._thread.start()

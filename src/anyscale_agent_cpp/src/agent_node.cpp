@@ -1,4 +1,6 @@
-// The agent's setup, timers, status message and diagnostics; services are in agent_services.cpp.
+// The agent's setup (parameters, services, timers) and its supervision and graph timers. The status
+// message is in agent_status.cpp, priorities in agent_priority.cpp, adoption and the lease ends of
+// the state file in agent_restarts.cpp, services in agent_services.cpp.
 #include "anyscale_agent_cpp/agent_node.h"
 
 #include <ros/package.h>
@@ -11,7 +13,6 @@
 #include <cstdlib>
 #include <filesystem>
 
-#include "anyscale_agent_cpp/process_priority.h"
 #include "anyscale_agent_cpp/uplink_carrier.h"
 
 namespace anyscale_agent
@@ -71,21 +72,6 @@ std::string defaultLogDir(const std::string& scale)
   return base + "/anyscale/" + scale;
 }
 
-uint8_t toMsgState(ProcState s)
-{
-  switch (s)
-  {
-    case ProcState::Starting: return anyscale_msgs::NodeProcess::STARTING;
-    case ProcState::Running: return anyscale_msgs::NodeProcess::RUNNING;
-    case ProcState::Stopping: return anyscale_msgs::NodeProcess::STOPPING;
-    case ProcState::Exited: return anyscale_msgs::NodeProcess::EXITED;
-    case ProcState::Replaced: return anyscale_msgs::NodeProcess::REPLACED;
-    case ProcState::LeaseExpired: return anyscale_msgs::NodeProcess::LEASE_EXPIRED;
-    case ProcState::Standby: return anyscale_msgs::NodeProcess::STANDBY;
-    case ProcState::Paused: return anyscale_msgs::NodeProcess::PAUSED;
-  }
-  return anyscale_msgs::NodeProcess::EXITED;
-}
 }  // namespace
 
 AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
@@ -186,54 +172,6 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   ROS_INFO("anyscale agent of scale '%s'%s: %zu nodes declared in %s, logs in %s; nodes %s", scale_.c_str(),
            is_master_ ? " (master)" : "", model_.names().size(), model_path_.c_str(), log_dir_.c_str(),
            supervisor_.options().parent_death_signal ? "die with this agent" : "outlive this agent if it is killed");
-}
-
-void AgentNode::adoptNodes(const std::string& state_file)
-{
-  const AdoptionReport report = supervisor_.adopt(state_file);
-  if (!report.warning.empty())
-    ROS_WARN("%s", report.warning.c_str());
-  for (const auto& line : report.dropped)
-    ROS_WARN("not adopted from %s: %s", state_file.c_str(), line.c_str());
-  const double now = steadyNow();
-  for (const auto& a : report.adopted)
-  {
-    const ProcessInfo& p = a.info;
-    const NodeDecl* decl = model_.find(p.name);
-    if (!decl)
-    {
-      // The model is what may run here; this agent would never have started it.
-      ROS_WARN("adopted %s (pid %d) is not declared in %s: stopping it", p.name.c_str(), p.pid, model_path_.c_str());
-      supervisor_.stop(p.name);
-      continue;
-    }
-    ROS_INFO("adopted %s (pid %d, %s), left running by the agent before this one; log %s", p.name.c_str(), p.pid,
-             toString(p.state), p.log_file.c_str());
-    // Its start boost may have been under way when the predecessor died, and nobody would end it.
-    std::string error;
-    if (p.state != ProcState::Stopping && !setProcessNice(p.pid, decl->nice, &error))
-      ROS_WARN("adopted %s: cannot set its nice to %d: %s", p.name.c_str(), decl->nice, error.c_str());
-    if (a.lease_end_s <= 0.0 || p.state == ProcState::Stopping)
-      continue;
-    if (a.lease_end_s <= now)
-    {
-      // It ran on past its lease while no agent watched it: what the lease exists to prevent.
-      ROS_WARN("adopted %s: its lease ended %.1f s ago, while no agent ran: stopping it", p.name.c_str(),
-               now - a.lease_end_s);
-      supervisor_.stop(p.name, ProcState::LeaseExpired);
-      continue;
-    }
-    grantLease(p.name, a.lease_end_s - now);
-  }
-}
-
-void AgentNode::grantLease(const std::string& name, double lease_s)
-{
-  std::lock_guard<std::mutex> lock(leases_mutex_);
-  leases_.grant(name, steadyNow(), lease_s);
-  // In the state file too, so that a successor enforces it (the steady clock is the system's
-  // CLOCK_MONOTONIC, the same in every process of a boot).
-  supervisor_.setLeaseEnds({ { name, leases_.expiry(name).value_or(0.0) } });
 }
 
 AgentNode::~AgentNode()
@@ -337,152 +275,6 @@ void AgentNode::onGraph(const ros::SteadyTimerEvent&)
   }
   if (const auto local = graph_.localSubscribedTopics(own))
     topics_->update(*local);
-}
-
-void AgentNode::raiseControlPriority(int control_nice)
-{
-  if (control_nice < -20 || control_nice > 0)
-    throw std::runtime_error("parameter ~control_nice must be a nice value from -20 to 0 (0: the priority it was "
-                             "started at), got " + std::to_string(control_nice));
-  // On a robot held at its CPU quota, a stop, a resume or a status answered late is a node's
-  // output silent for longer: the agent's own work is small, so a raised priority costs the
-  // nodes little and answers its calls ahead of them. Its nodes start at the priority it had
-  // before (SupervisorOptions::child_nice).
-  std::string error;
-  if (control_nice != 0 && !setProcessNice(::getpid(), control_nice, &error))
-    ROS_WARN("cannot run the agent at nice %d (%s)%s; it runs at its nodes' priority", control_nice,
-             error.c_str(), ": raising a priority needs CAP_SYS_NICE");
-}
-
-void AgentNode::setStartPriority(const std::string& name, int pid, int nice)
-{
-  // Relative to the declared nice also when both nodes are resumed (agent README, "Paused at
-  // home"): AR recognition takes every frame it can, and resumed at AMCL's priority it halved
-  // AMCL's CPU for the whole boost (AMCL's return 2.43 s, Δ 2 s).
-  const int start_nice = boosts_.startNice(nice);
-  std::string error;
-  if (start_nice != 0 && !setProcessNice(pid, start_nice, &error))
-  {
-    ROS_WARN_ONCE("%s: cannot run it at nice %d (%s)%s; nodes run at the agent's priority", name.c_str(),
-                  start_nice, error.c_str(), start_nice < 0 ? ": raising a priority needs CAP_SYS_NICE" : "");
-    return;
-  }
-  std::lock_guard<std::mutex> lock(boost_mutex_);
-  boosts_.started(name, pid, nice, steadyNow());
-}
-
-void AgentNode::endBoosts()
-{
-  std::vector<StartBoosts::Due> due;
-  {
-    std::lock_guard<std::mutex> lock(boost_mutex_);
-    due = boosts_.takeDue(steadyNow());
-  }
-  for (const auto& boost : due)
-  {
-    const auto info = supervisor_.info(boost.name);
-    std::string error;
-    if (info && info->pid == boost.pid && !setProcessNice(boost.pid, boost.nice, &error))
-      ROS_WARN("%s: could not end its start priority: %s", boost.name.c_str(), error.c_str());
-  }
-}
-
-void AgentNode::onUplink(const ros::SteadyTimerEvent&)
-{
-  const Carrier carrier = readCarrier(uplink_interface_);
-  const bool up = carrier == Carrier::Up;
-  if (up == uplink_up_.exchange(up))
-    return;
-  if (up)
-    ROS_INFO("uplink %s has a carrier again", uplink_interface_.c_str());
-  else
-    ROS_WARN("uplink %s lost its carrier (%s): the other scales are out of reach", uplink_interface_.c_str(),
-             toString(carrier));
-  // At once, not at the next sample: the decision node brings remote nodes home on this.
-  anyscale_msgs::ScaleStatus s;
-  {
-    std::lock_guard<std::mutex> lock(sample_mutex_);
-    if (last_status_.scale.empty())
-      return;  // nothing sampled yet; the first sample carries the state
-    applyUplink(last_status_.link);
-    s = last_status_;
-    // The processes as they are now, not as last sampled: a start since then (a node brought
-    // home by this very link loss) replaced the record of the instance before it, and the
-    // old record, ended by the stop of a move, read as a crash of the new one to the decision
-    // node: it "restarted" a node that was starting (seen after link-loss returns, 'signal 9').
-    s.nodes = nodeProcesses();
-  }
-  status_pub_.publish(s);
-}
-
-void AgentNode::applyUplink(anyscale_msgs::LinkStatistics& link) const
-{
-  link.uplink_interface = uplink_interface_;
-  link.carrier = uplink_up_;
-  link.up = link.up && link.carrier;
-}
-
-std::vector<anyscale_msgs::NodeProcess> AgentNode::nodeProcesses()
-{
-  const ros::Time now = ros::Time::now();
-  const auto steady = std::chrono::steady_clock::now();
-  const double steady_s = steadyNow();
-  std::vector<anyscale_msgs::NodeProcess> out;
-  std::lock_guard<std::mutex> lock(leases_mutex_);
-  for (const auto& p : supervisor_.snapshot())
-  {
-    anyscale_msgs::NodeProcess m;
-    m.name = p.name;
-    m.instance = rosName(p.name);
-    m.pid = p.pid;
-    m.state = toMsgState(p.state);
-    m.exit_code = p.exit_code;
-    m.exit_signal = p.exit_signal;
-    if (p.pid != 0)
-      if (const auto g = sampler_.group(p.pid))
-      {
-        m.cpu_percent = float(g->cpu_percent);
-        m.rss_bytes = g->rss_bytes;
-      }
-    const double age = std::chrono::duration<double>(steady - p.started).count();
-    m.started = now - ros::Duration(std::min(age, now.toSec()));
-    if (const auto expiry = p.state != ProcState::Standby ? leases_.expiry(p.name) : std::nullopt)
-      m.lease_expiry = now + ros::Duration(std::max(0.0, *expiry - steady_s));
-    m.log_file = p.log_file;
-    out.push_back(m);
-  }
-  return out;
-}
-
-void AgentNode::onSample(const ros::SteadyTimerEvent&)
-{
-  std::vector<int> pgids;
-  for (const auto& p : supervisor_.snapshot())
-    if (p.pid != 0)
-      pgids.push_back(p.pid);
-  anyscale_msgs::ScaleStatus s;
-  {
-    std::lock_guard<std::mutex> lock(sample_mutex_);
-    sampler_.sample(steadyNow(), pgids);
-    const ScaleUsage& u = sampler_.scale();
-    s.header.stamp = ros::Time::now();
-    s.scale = scale_;
-    s.is_master = is_master_;
-    s.cores = u.cores;
-    s.cpu_max_ghz = float(u.cpu_max_ghz);
-    s.cpu_quota_cores = float(u.quota_cores);
-    s.cpu_percent = float(u.cpu_percent);
-    s.memory_total_bytes = u.memory_total_bytes;
-    s.memory_available_bytes = u.memory_available_bytes;
-    s.sample_period_s = float(sampler_.periodSeconds());
-    s.topics = topics_->stats(s.header.stamp);
-    s.link = link_->stats();
-    applyUplink(s.link);
-    s.nodes = nodeProcesses();  // last, just before publishing: see onUplink
-    last_status_ = s;
-  }
-  status_pub_.publish(s);
-  diagnostics_.update();
 }
 
 }  // namespace anyscale_agent

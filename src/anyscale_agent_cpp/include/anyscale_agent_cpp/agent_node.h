@@ -60,16 +60,22 @@ private:
   void setWatched(const anyscale_msgs::SetWatchedTopics::Request& req, anyscale_msgs::SetWatchedTopics::Response& res);
 
   // Timers (agent_node.cpp).
-  void onSample(const ros::SteadyTimerEvent&);      // /proc, topics, link -> /anyscale/status
   void onSupervise(const ros::SteadyTimerEvent&);   // reaping, signal escalation, leases, standbys
   void onGraph(const ros::SteadyTimerEvent&);       // master queries: registration, local topics
+  // Status (agent_status.cpp).
+  void onSample(const ros::SteadyTimerEvent&);      // /proc, topics, link -> /anyscale/status
   void onUplink(const ros::SteadyTimerEvent&);      // carrier of ~uplink_interface; status on change
   void applyUplink(anyscale_msgs::LinkStatistics& link) const;
-  // The nodes a killed predecessor left running (~state_file): adopted, with their leases.
+  std::vector<anyscale_msgs::NodeProcess> nodeProcesses();
+
+  // Restarts (agent_restarts.cpp). The nodes a killed predecessor left running (~state_file):
+  // adopted, with their leases.
   void adoptNodes(const std::string& state_file);
   // Grants (lease_s > 0) or drops the lease of `name`, also in the supervisor's state file.
   void grantLease(const std::string& name, double lease_s);
-  // The node's launch.nice, with ~start_boost_nice added for its first ~start_boost_s.
+
+  // Priorities (agent_priority.cpp): the agent's ~control_nice; a node's launch.nice, with
+  // ~start_boost_nice added for its first ~start_boost_s.
   void raiseControlPriority(int control_nice);
   void setStartPriority(const std::string& name, int pid, int nice);
   void endBoosts();  // on the supervision thread
@@ -86,11 +92,12 @@ private:
     return instanceName(qualified_name, scale_, is_master_);
   }
 
-  std::vector<anyscale_msgs::NodeProcess> nodeProcesses();
+  // Diagnostics (agent_diagnostics.cpp).
   void diagnoseNodes(diagnostic_updater::DiagnosticStatusWrapper& stat);
   void diagnoseScale(diagnostic_updater::DiagnosticStatusWrapper& stat);
   void diagnoseLink(diagnostic_updater::DiagnosticStatusWrapper& stat);
   void diagnoseTopics(diagnostic_updater::DiagnosticStatusWrapper& stat);
+
   static double steadyNow();
   std::string locatePackage(const std::string& package) const;
 

@@ -1,4 +1,5 @@
-// The supervisor's state file: YAML text, atomic writes, strict reading, and adoption matching.
+// The supervisor's state file: YAML text, atomic writes, their ordering outside the supervisor's
+// lock, strict reading, and adoption matching.
 #include "anyscale_agent_cpp/node_state_file.h"
 
 #include <fcntl.h>
@@ -9,6 +10,7 @@
 #include <cmath>
 #include <cstring>
 #include <set>
+#include <utility>
 
 #include "anyscale_agent_cpp/unique_fd.h"
 
@@ -215,6 +217,49 @@ bool writeNodeStateFile(const std::string& path, const NodeState& state, std::st
     return fail("cannot replace " + path);
   }
   return true;
+}
+
+std::optional<NodeStateWriter::Staged> NodeStateWriter::stage(const NodeState& state)
+{
+  if (path_.empty() || (staged_last_ && *staged_last_ == state && !failed_))
+    return std::nullopt;
+  staged_last_ = state;
+  return Staged{ ++staged_seq_, path_, state };
+}
+
+void NodeStateWriter::write(const Staged& staged)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (staged.seq <= written_seq_)
+    return;  // overtaken: the file holds a later state already
+  written_seq_ = staged.seq;
+  std::string error;
+  if (writeNodeStateFile(staged.path, staged.state, &error))
+  {
+    if (!error_.empty())
+      notes_.push_back("node state file " + staged.path + " is written again");
+    error_.clear();
+    failed_ = false;
+    return;
+  }
+  failed_ = true;
+  if (error != error_)
+  {
+    error_ = error;
+    notes_.push_back("node state file: " + error + ": a restarted agent will not find the nodes");
+  }
+}
+
+std::string NodeStateWriter::error() const
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  return error_;
+}
+
+std::vector<std::string> NodeStateWriter::takeNotes()
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  return std::exchange(notes_, {});
 }
 
 std::optional<NodeState> readNodeStateFile(const std::string& path)

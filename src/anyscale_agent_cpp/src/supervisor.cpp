@@ -92,7 +92,7 @@ bool Supervisor::stopStandby(const std::string& name)
 
 bool Supervisor::stop(const std::string& name, ProcState final_state, double kill_after_s)
 {
-  std::lock_guard<std::mutex> lock(mutex_);
+  StateLock lock(*this);
   const bool stopping = stopLocked(name, final_state, kill_after_s);
   if (stopping)
     saveStateLocked();
@@ -128,7 +128,7 @@ bool Supervisor::stopLocked(const std::string& name, ProcState final_state, doub
 
 bool Supervisor::pause(const std::string& name, std::string* error)
 {
-  std::lock_guard<std::mutex> lock(mutex_);
+  StateLock lock(*this);
   auto it = records_.find(name);
   if (it == records_.end() || !isAlive(it->second) || it->second.info.state != ProcState::Running)
   {
@@ -148,7 +148,7 @@ bool Supervisor::pause(const std::string& name, std::string* error)
 
 int Supervisor::resume(const std::string& name, std::string* error)
 {
-  std::lock_guard<std::mutex> lock(mutex_);
+  StateLock lock(*this);
   reapLocked();  // a paused node that was killed meanwhile must not count as resumed
   auto it = records_.find(name);
   if (it == records_.end() || !isAlive(it->second) || it->second.info.state != ProcState::Paused)
@@ -255,7 +255,7 @@ void Supervisor::recordExitLocked(const std::string& name, Record& r, int exit_c
 
 void Supervisor::poll()
 {
-  std::lock_guard<std::mutex> lock(mutex_);
+  StateLock lock(*this);
   reapLocked();
   const auto now = Clock::now();
   for (auto* slots : {&records_, &standbys_})
@@ -292,7 +292,7 @@ bool Supervisor::waitGone(const std::string& name, double timeout_s)
 
 void Supervisor::markRunning(const std::string& name)
 {
-  std::lock_guard<std::mutex> lock(mutex_);
+  StateLock lock(*this);
   auto it = records_.find(name);
   if (it != records_.end() && it->second.info.state == ProcState::Starting)
   {

@@ -71,8 +71,19 @@ AdoptionReport Supervisor::adopt(const std::string& state_file)
   {
     report.warning = std::string(e.what()) + "; no node is adopted, the file is written anew";
   }
-  std::lock_guard<std::mutex> lock(mutex_);
-  state_file_ = state_file;
+  {
+    StateLock lock(*this);
+    state_file_.setPath(state_file);
+    adoptLocked(previous, report);
+  }  // the file is written here
+  if (const std::string error = state_file_.error(); !error.empty())
+    report.warning += (report.warning.empty() ? "" : "; ") + error + ": a restarted agent will not find these nodes";
+  state_file_.takeNotes();  // said in the report
+  return report;
+}
+
+void Supervisor::adoptLocked(const std::optional<NodeState>& previous, AdoptionReport& report)
+{
   boot_id_ = currentBootId();
   std::vector<std::string> resume_stop;
   for (const auto& e : previous ? previous->nodes : std::vector<NodeStateEntry>{})
@@ -171,17 +182,12 @@ AdoptionReport Supervisor::adopt(const std::string& state_file)
   // stdin is a socket whose other end was its agent's, so it ends by itself at end-of-file
   // when that agent dies; this agent prepares new ones.
   saveStateLocked();
-  if (!state_file_error_.empty())
-    report.warning += (report.warning.empty() ? "" : "; ") + state_file_error_ +
-                      ": a restarted agent will not find these nodes";
-  state_file_notes_.clear();  // said in the report
   changed_.notify_all();
-  return report;
 }
 
 void Supervisor::setLeaseEnds(const std::map<std::string, double>& lease_ends)
 {
-  std::lock_guard<std::mutex> lock(mutex_);
+  StateLock lock(*this);
   bool changed = false;
   for (const auto& [name, end] : lease_ends)
     if (auto it = records_.find(name); it != records_.end() && isAlive(it->second) && it->second.lease_end_s != end)
@@ -195,10 +201,7 @@ void Supervisor::setLeaseEnds(const std::map<std::string, double>& lease_ends)
 
 std::vector<std::string> Supervisor::takeStateFileNotes()
 {
-  std::lock_guard<std::mutex> lock(mutex_);
-  std::vector<std::string> out;
-  out.swap(state_file_notes_);
-  return out;
+  return state_file_.takeNotes();
 }
 
 bool Supervisor::adoptedExited(const Record& r) const
@@ -217,7 +220,7 @@ bool Supervisor::adoptedExited(const Record& r) const
 
 void Supervisor::saveStateLocked()
 {
-  if (state_file_.empty())
+  if (state_file_.path().empty())
     return;
   NodeState state;
   state.boot_id = boot_id_;
@@ -231,21 +234,13 @@ void Supervisor::saveStateLocked()
       e.argv = r.argv;
       e.log_file = r.info.log_file;
       e.state = stateName(r.info.state);
-      e.lease_end_s = r.lease_end_s;
+      // A successor enforces a lease only on a node that outlives this agent: the others die
+      // with it (parent_death_signal), so their renewals need no write.
+      e.lease_end_s = options_.parent_death_signal == 0 || r.info.adopted ? r.lease_end_s : 0.0;
       state.nodes.push_back(std::move(e));
     }
-  std::string error;
-  if (writeNodeStateFile(state_file_, state, &error))
-  {
-    if (!state_file_error_.empty())
-      state_file_notes_.push_back("node state file " + state_file_ + " is written again");
-    state_file_error_.clear();
-  }
-  else if (error != state_file_error_)
-  {
-    state_file_error_ = error;
-    state_file_notes_.push_back("node state file: " + error + ": a restarted agent will not find the nodes");
-  }
+  if (auto staged = state_file_.stage(state))
+    staged_state_ = std::move(staged);
 }
 
 }  // namespace anyscale_agent

@@ -53,7 +53,7 @@ int Supervisor::startStandby(const std::string& name, const std::vector<std::str
 int Supervisor::launch(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
                        bool standby, std::string* error)
 {
-  std::lock_guard<std::mutex> lock(mutex_);
+  StateLock lock(*this);
   auto fail = [&](const std::string& why) {
     if (error)
       *error = why;
@@ -125,7 +125,7 @@ int Supervisor::launch(const std::string& name, const std::vector<std::string>& 
 
 int Supervisor::activate(const std::string& name, std::string* error)
 {
-  std::lock_guard<std::mutex> lock(mutex_);
+  StateLock lock(*this);
   reapLocked();  // a standby that died since the last poll must not count as ready
   auto fail = [&](const std::string& why) {
     if (error)

@@ -1,5 +1,6 @@
 // gtest: the supervisor's state file (round trip, atomic write, corrupt and truncated files)
-// and the rules that decide whether a live process is the node an entry names.
+// and the rules that decide whether a live process is the node an entry names; the writer that
+// writes only a changed list and never an older one after a newer.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -220,4 +221,71 @@ TEST(NodeStateFile, WhyAProcessIsNotTheNode)
 TEST(NodeStateFile, BootIdIsRead)
 {
   EXPECT_EQ(currentBootId().size(), 36u) << currentBootId();
+}
+
+TEST(NodeStateWriter, AStateIsWrittenOnlyWhenItChanged)
+{
+  supervisor_test::TempDir dir;
+  const std::string path = dir.path() + "/nodes.yaml";
+  NodeStateWriter writer;
+  EXPECT_FALSE(writer.stage(sample()).has_value()) << "no path: no file";
+  writer.setPath(path);
+  const auto first = writer.stage(sample());
+  ASSERT_TRUE(first.has_value());
+  writer.write(*first);
+  EXPECT_EQ(readNodeStateFile(path)->nodes, sample().nodes);
+  // The same list again (e.g. a lease renewal of a node whose lease is not written) is no write.
+  EXPECT_FALSE(writer.stage(sample()).has_value());
+  NodeState paused = sample();
+  paused.nodes[0].state = "paused";
+  const auto second = writer.stage(paused);
+  ASSERT_TRUE(second.has_value());
+  EXPECT_GT(second->seq, first->seq);
+  writer.write(*second);
+  EXPECT_EQ(readNodeStateFile(path)->nodes, paused.nodes);
+  EXPECT_TRUE(writer.takeNotes().empty());
+}
+
+TEST(NodeStateWriter, AStateOvertakenByALaterOneIsNotWritten)
+{
+  // Two threads stage in the order of their changes, and may write in the other order: the
+  // file must end with the later list, not go back to the earlier one.
+  supervisor_test::TempDir dir;
+  const std::string path = dir.path() + "/nodes.yaml";
+  NodeStateWriter writer;
+  writer.setPath(path);
+  NodeState earlier = sample();
+  NodeState later = sample();
+  later.nodes.pop_back();
+  const auto a = writer.stage(earlier);
+  const auto b = writer.stage(later);
+  ASSERT_TRUE(a && b);
+  writer.write(*b);
+  writer.write(*a);
+  EXPECT_EQ(readNodeStateFile(path)->nodes, later.nodes);
+}
+
+TEST(NodeStateWriter, AFailedWriteIsSaidOnceAndTriedAgain)
+{
+  supervisor_test::TempDir dir;
+  const std::string sub = dir.path() + "/later";
+  const std::string path = sub + "/nodes.yaml";
+  NodeStateWriter writer;
+  writer.setPath(path);
+  writer.write(*writer.stage(sample()));
+  EXPECT_NE(writer.error().find(sub), std::string::npos) << writer.error();
+  const auto failed = writer.takeNotes();
+  ASSERT_EQ(failed.size(), 1u);
+  EXPECT_NE(failed[0].find("will not find the nodes"), std::string::npos) << failed[0];
+  // The same list is staged again after a failure, and the same failure is not said again.
+  const auto again = writer.stage(sample());
+  ASSERT_TRUE(again.has_value());
+  writer.write(*again);
+  EXPECT_TRUE(writer.takeNotes().empty());
+  ASSERT_TRUE(std::filesystem::create_directory(sub));
+  writer.write(*writer.stage(sample()));
+  EXPECT_EQ(writer.error(), "");
+  EXPECT_EQ(writer.takeNotes(), std::vector<std::string>{ "node state file " + path + " is written again" });
+  EXPECT_EQ(readNodeStateFile(path)->nodes, sample().nodes);
+  EXPECT_FALSE(writer.stage(sample()).has_value()) << "written: nothing to try again";
 }

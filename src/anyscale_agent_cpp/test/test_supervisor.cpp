@@ -189,7 +189,7 @@ TEST(Supervisor, OutputGoesToTheLogFile)
   std::string err;
   ASSERT_GT(s.start("echo", sh("echo hello-out; echo hello-err >&2"), log, &err), 0) << err;
   ASSERT_TRUE(s.waitGone("echo", 10.0));
-  const std::string out = readFile(log);
+  const std::string out = supervisor_test::readFile(log);
   EXPECT_NE(out.find("hello-out"), std::string::npos);
   EXPECT_NE(out.find("hello-err"), std::string::npos);
   EXPECT_EQ(s.info("echo")->log_file, log);

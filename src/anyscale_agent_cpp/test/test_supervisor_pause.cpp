@@ -27,7 +27,7 @@ char procState(int pid)
 
 std::size_t fileSize(const std::string& path)
 {
-  return readFile(path).size();
+  return supervisor_test::readFile(path).size();
 }
 }  // namespace
 

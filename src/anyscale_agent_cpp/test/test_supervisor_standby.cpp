@@ -30,14 +30,14 @@ TEST(Supervisor, StandbyWaitsForActivationThenRunsAsANode)
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   EXPECT_EQ(s.standby("warm")->state, ProcState::Standby);
   EXPECT_FALSE(s.info("warm")) << "a standby is no node";
-  EXPECT_EQ(readFile(log), "");  // still waiting
+  EXPECT_EQ(supervisor_test::readFile(log), "");  // still waiting
   EXPECT_EQ(s.startStandby("warm", {"/bin/true"}, log, &err), 0) << "one standby per node";
 
   EXPECT_EQ(s.activate("warm", &err), pid) << err;
   EXPECT_EQ(s.info("warm")->state, ProcState::Starting);
   EXPECT_FALSE(s.standby("warm")) << "the standby became the node";
   ASSERT_TRUE(s.waitGone("warm", 10.0));
-  EXPECT_EQ(readFile(log), "got:start\n");
+  EXPECT_EQ(supervisor_test::readFile(log), "got:start\n");
   EXPECT_EQ(s.info("warm")->exit_code, 4);
   // Once activated it is a node like any other: its own exit is reported.
   EXPECT_EQ(s.takeUnrequestedExits(), std::vector<std::string>{"warm"});

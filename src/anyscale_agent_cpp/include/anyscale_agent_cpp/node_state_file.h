@@ -1,8 +1,11 @@
-// The supervisor's state file (the nodes it runs, for a restarted agent to adopt) and the rules
-// that decide whether a live process is still the node an entry names. No ROS; gtested.
+// The supervisor's state file (the nodes it runs, for a restarted agent to adopt), its writer,
+// and the rules that decide whether a live process is still the node an entry names. No ROS;
+// gtested.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
+#include <mutex>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -38,6 +41,8 @@ struct NodeState
 {
   std::string boot_id;  // /proc/sys/kernel/random/boot_id: start times count from this boot
   std::vector<NodeStateEntry> nodes;
+
+  bool operator==(const NodeState& o) const { return boot_id == o.boot_id && nodes == o.nodes; }
 };
 
 // A state file that is not one this agent wrote completely: the message names the file and
@@ -59,6 +64,49 @@ bool writeNodeStateFile(const std::string& path, const NodeState& state, std::st
 // nullopt if there is no such file (a first start); throws NodeStateError if it is unreadable
 // or malformed.
 std::optional<NodeState> readNodeStateFile(const std::string& path);
+
+// One state file kept current by threads that change the state under a lock of their own (the
+// supervisor's), without holding that lock for the file I/O: each state is staged under the
+// lock, in the order of the changes, and written after the lock is released. A state equal to
+// the one staged last is not written again, and a staged state that a later one overtook is not
+// written at all, so the file never goes back to an older list.
+class NodeStateWriter
+{
+public:
+  struct Staged
+  {
+    uint64_t seq = 0;  // the order of staging
+    std::string path;
+    NodeState state;
+  };
+
+  // Under the caller's lock. "" (the default): there is no file, nothing is staged.
+  void setPath(const std::string& path) { path_ = path; }
+  const std::string& path() const { return path_; }
+  // Under the caller's lock: what writes `state`, or nullopt if there is no file or `state` is
+  // the one staged last (and the last write did not fail: a failed write is tried again).
+  std::optional<Staged> stage(const NodeState& state);
+  // Without the caller's lock: writes `staged` unless a later state was written already.
+  void write(const Staged& staged);
+
+  // The last write's failure, "" while writes work.
+  std::string error() const;
+  // Changes in the file's health since the last call (a write failed, or works again), one
+  // line each, for the caller to log.
+  std::vector<std::string> takeNotes();
+
+private:
+  // Guarded by the caller's lock.
+  std::string path_;
+  uint64_t staged_seq_ = 0;
+  std::optional<NodeState> staged_last_;
+  // Guarded by mutex_, held for each write.
+  mutable std::mutex mutex_;
+  uint64_t written_seq_ = 0;
+  std::string error_;
+  std::vector<std::string> notes_;
+  std::atomic<bool> failed_{ false };  // the last write failed (read by stage())
+};
 
 // This boot's id, "" if the kernel does not say.
 std::string currentBootId();

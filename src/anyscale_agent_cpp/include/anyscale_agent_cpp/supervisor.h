@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "anyscale_agent_cpp/node_state_file.h"
 #include "anyscale_agent_cpp/unique_fd.h"
 
 namespace anyscale_agent
@@ -159,11 +160,14 @@ public:
   // Reads the state file a predecessor left at `state_file` and adopts each node in it whose
   // process still runs: same pid, same start time, same command line. An adopted node is a
   // node like any other (stop, pause, list, exits) except that it is not our child. From then
-  // on the file lists the running nodes, rewritten on every change. Call it once, before any
-  // start. Never throws: an unusable file is a warning and adopts nothing.
+  // on the file lists the running nodes, rewritten whenever that list changes, after the
+  // change and outside the supervisor's lock. Call it once, before any start. Never throws:
+  // an unusable file is a warning and adopts nothing.
   AdoptionReport adopt(const std::string& state_file);
   // The lease ends of running nodes (CLOCK_MONOTONIC seconds, 0: none), kept in the state
-  // file so that a successor enforces them.
+  // file so that a successor enforces them: only for nodes that outlive this supervisor
+  // (parent_death_signal 0, or adopted). A node that dies with it leaves nothing to enforce,
+  // and is written with 0, so that a lease renewal does not rewrite the file.
   void setLeaseEnds(const std::map<std::string, double>& lease_ends);
   // Changes in the state file's health since the last call (a write failed, or works again),
   // one line each, for the caller to log.
@@ -190,12 +194,17 @@ private:
     double lease_end_s = 0.0;
     UniqueFd pidfd;  // an adopted node's pidfd (-1: watched through /proc)
   };
+  // mutex_, for a call that may change the state file: what saveStateLocked() staged under
+  // it is written when it is released, after mutex_ is given up (defined below the class).
+  class StateLock;
   static bool isAlive(const Record& r);
   void escalate(Group& g, std::chrono::steady_clock::time_point now);
   void reapLocked();
   bool stopLocked(const std::string& name, ProcState final_state, double kill_after_s);
   void recordExitLocked(const std::string& name, Record& r, int exit_code, int exit_signal);
+  void adoptLocked(const std::optional<NodeState>& previous, AdoptionReport& report);
   bool adoptedExited(const Record& r) const;
+  // Stages the state file's list of running nodes, if it changed, for the StateLock held to write.
   void saveStateLocked();
   int launch(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
              bool standby, std::string* error);
@@ -208,10 +217,9 @@ private:
   std::map<std::string, Record> standbys_;  // their warm standbys
   std::vector<Group> orphan_groups_;  // leaders gone, members remain
   std::vector<std::string> unrequested_exits_;
-  std::string state_file_;  // empty until adopt(): no state file
+  NodeStateWriter state_file_;  // no path until adopt(): no state file
+  std::optional<NodeStateWriter::Staged> staged_state_;  // for the StateLock to write
   std::string boot_id_;
-  std::string state_file_error_;  // the last write's failure, "" while writes work
-  std::vector<std::string> state_file_notes_;
 
   // All forks happen on this one thread: the parent-death signal fires when the *thread* that
   // forked ends, and ROS spinner threads end before the agent has stopped its children.
@@ -220,6 +228,27 @@ private:
   std::function<void()> spawn_job_;
   bool spawner_quit_ = false;
   std::thread spawner_;
+};
+
+class Supervisor::StateLock
+{
+public:
+  explicit StateLock(Supervisor& s) : s_(s), lock_(s.mutex_) {}
+  ~StateLock()
+  {
+    std::optional<NodeStateWriter::Staged> staged;
+    staged.swap(s_.staged_state_);
+    lock_.unlock();
+    // A later state staged by another thread meanwhile overtakes this one (NodeStateWriter).
+    if (staged)
+      s_.state_file_.write(*staged);
+  }
+  StateLock(const StateLock&) = delete;
+  StateLock& operator=(const StateLock&) = delete;
+
+private:
+  Supervisor& s_;
+  std::unique_lock<std::mutex> lock_;
 };
 
 }  // namespace anyscale_agent

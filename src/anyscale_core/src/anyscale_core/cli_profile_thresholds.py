@@ -1,7 +1,7 @@
 """`anyscale profile` and `anyscale thresholds`: the commands that measure a model's numbers on
 the running system through the AnyScale agents, each node's cpu_usage and memory_mb, and a
 connection's freq_min, freq_opt and tolerance. The rospy parts (profile_ros.py,
-thresholds_ros.py) are imported only when they run."""
+thresholds_ros.py with thresholds_chain_ros.py) are imported only when they run."""
 from .cli_common import (RUNNING_AGENTS, add_command, add_seconds, add_start_timeout,
                          number_list, require_model_file)
 from .model import ModelError

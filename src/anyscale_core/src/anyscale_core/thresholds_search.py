@@ -23,7 +23,7 @@ passed checks (higher is better).
   score of any correct rate: above it the probe no longer improves.
 - tolerance: the longest interruption such that it and every shorter one tried were correct;
   0 when even the shortest failed (a critical connection).
-Nothing here talks to ROS (thresholds_ros.py does).
+Nothing here talks to ROS (thresholds_ros.py and thresholds_chain_ros.py do).
 """
 import math
 from dataclasses import dataclass

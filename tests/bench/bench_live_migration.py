@@ -31,8 +31,8 @@ import threading
 import time
 
 try:
-    from anyscale_testbed.testbed_record import (TestbedRecord, link_transitions, move_figures,
-                                                 reaction_s)
+    from anyscale_testbed.testbed_figures import link_transitions, move_figures, reaction_s
+    from anyscale_testbed.testbed_record import TestbedRecord
     from anyscale_testbed.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
     from anyscale_testbed.two_scale_testbed import missing_capabilities
 except ImportError as e:

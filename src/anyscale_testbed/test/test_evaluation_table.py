@@ -17,7 +17,8 @@ from anyscale_testbed.evaluation_table import (baseline_of, bound_share, format_
                                                paired_bound_share, paired_gain,
                                                paired_gain_spread, paper_comparison,
                                                spread_of, table_lines, write_csv)
-from anyscale_testbed.testbed_record import TestbedRecord, mapping_at, tolerance_violations
+from anyscale_testbed.testbed_figures import tolerance_violations
+from anyscale_testbed.testbed_record import TestbedRecord, mapping_at
 
 AMCL_MBPS = 0.22
 

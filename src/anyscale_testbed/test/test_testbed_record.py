@@ -5,11 +5,10 @@ import math
 
 import pytest
 
-from anyscale_testbed.testbed_record import (EventRecord, TestbedRecord, colour_violations,
-                                             first_after, format_summary, gap_during,
-                                             link_transitions, longest_gap, move_figures,
-                                             reaction_s, store_cpu_normalisation,
-                                             tolerance_violations)
+from anyscale_testbed.testbed_figures import (colour_violations, first_after, format_summary,
+                                              gap_during, link_transitions, longest_gap,
+                                              move_figures, reaction_s, tolerance_violations)
+from anyscale_testbed.testbed_record import EventRecord, TestbedRecord, store_cpu_normalisation
 
 
 def event(decided_t, duration_s=0.5, kind="migrate", reason="laptop can take it"):

@@ -2,7 +2,8 @@
 import csv
 import math
 
-from anyscale_testbed.testbed_record import EventRecord, TestbedRecord, tolerance_violations
+from anyscale_testbed.testbed_figures import tolerance_violations
+from anyscale_testbed.testbed_record import EventRecord, TestbedRecord
 from anyscale_testbed.tolerance_report import (format_markdown, format_table, path_time, run_row,
                                                write_csv)
 

@@ -25,7 +25,8 @@ import sys
 import yaml
 
 from anyscale_testbed.host_speed import CpuNormaliser
-from anyscale_testbed.testbed_record import colour_violations, store_cpu_normalisation
+from anyscale_testbed.testbed_figures import colour_violations
+from anyscale_testbed.testbed_record import store_cpu_normalisation
 from anyscale_testbed.testbed_session import (LoopbackBed, NamespaceBed, TestbedSession,
                                               layout_with_cpu)
 from anyscale_testbed.two_scale_testbed import TwoScaleError, missing_capabilities

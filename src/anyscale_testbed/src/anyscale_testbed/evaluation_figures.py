@@ -37,7 +37,8 @@ from anyscale_nav_demo.results import (AMCL_ON_LAPTOP, AR_ON_LAPTOP,  # noqa: F4
 
 from .evaluation_shortfall import NO_SHORTFALL, Shortfall, shortfall
 from .premise_figures import figures_with_every_node_home
-from .testbed_record import TestbedRecord, mapping_at, pose_errors
+from .testbed_figures import pose_errors
+from .testbed_record import TestbedRecord, mapping_at
 from .tolerance_report import RunRow, path_time, run_row
 
 # The safe-speed rule (anyscale_nav_demo/safe_speed.py: 0.1 m between corrections): AMCL at

@@ -22,7 +22,8 @@ from typing import TYPE_CHECKING, Dict, List
 
 import numpy as np
 
-from .testbed_record import TestbedRecord, link_transitions, move_window
+from .testbed_figures import link_transitions, move_window
+from .testbed_record import TestbedRecord
 
 if TYPE_CHECKING:       # evaluation_figures imports this module for its RunFigures
     from .evaluation_figures import PathSteps

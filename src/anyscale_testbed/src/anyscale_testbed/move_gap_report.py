@@ -1,19 +1,19 @@
 """Output gaps per move over several test-bed runs, beside the node's own gaps when nothing
-moves (pure, no ROS). A move's gap (testbed_record.move_figures) is the longest silence of the
+moves (pure, no ROS). A move's gap (testbed_figures.move_figures) is the longest silence of the
 node's output in the move's window, and a node starved on the robot is silent now and then by
 itself: the reference is the longest silence in windows of the same length, slid over the
 stretches where the node ran at home and no node moved, restarted or lost its link nearby.
 A move whose gaps look like that reference added no silence of its own. Where the record names
 each message's sender, the silence right before the new instance's first message is the
-handover's own (testbed_record.handover_silence)."""
+handover's own (testbed_figures.handover_silence)."""
 from dataclasses import dataclass
 import math
 from typing import List, Sequence, Tuple
 
 import numpy as np
 
-from .testbed_record import (TestbedRecord, gap_during, link_transitions, mapping_at,
-                             move_figures, move_window)
+from .testbed_figures import gap_during, link_transitions, move_figures, move_window
+from .testbed_record import TestbedRecord, mapping_at
 
 # Kinds of move: a planned move out, a planned move back, a return forced by a link loss.
 OUT, BACK, LINK_LOSS = "planned out", "planned back", "link-loss return"
@@ -35,7 +35,7 @@ class MoveGap:
     decided_t: float
     gap_s: float
     window_s: float
-    handover_s: float = math.nan    # testbed_record.handover_silence
+    handover_s: float = math.nan    # testbed_figures.handover_silence
 
 
 def move_gaps(run: int, rec: TestbedRecord) -> List[MoveGap]:

@@ -28,8 +28,8 @@ from anyscale_core.model import ModelError
 from anyscale_core.model_loader import load_model
 from anyscale_core.ros_convert import EVENT_NAMES
 
-from .testbed_record import (EventRecord, ProcessSample, TestbedRecord, colour_violations,
-                             format_summary, tolerance_violations)
+from .testbed_figures import colour_violations, format_summary, tolerance_violations
+from .testbed_record import EventRecord, ProcessSample, TestbedRecord
 
 
 # python_standby's comm from its exec until it renames itself, and while it waits.

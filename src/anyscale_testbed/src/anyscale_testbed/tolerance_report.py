@@ -8,7 +8,8 @@ import math
 import statistics
 from typing import Dict, List, Optional, Sequence
 
-from .testbed_record import TestbedRecord, Violation, longest_gap
+from .testbed_figures import longest_gap
+from .testbed_record import TestbedRecord, Violation
 
 
 @dataclass

@@ -23,9 +23,10 @@ import sys
 import numpy as np
 import pytest
 
-from anyscale_testbed.testbed_record import (TestbedRecord, duplicate_instances, handover_windows,
-                                             link_transitions, longest_gap, mapping_at,
-                                             pose_errors, reaction_s)
+from anyscale_testbed.testbed_figures import (duplicate_instances, handover_windows,
+                                              link_transitions, longest_gap, pose_errors,
+                                              reaction_s)
+from anyscale_testbed.testbed_record import TestbedRecord, mapping_at
 
 # the repository root: this file is src/anyscale_testbed/test/system/ below it
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "..", ".."))

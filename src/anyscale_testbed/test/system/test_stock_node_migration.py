@@ -7,9 +7,9 @@ import subprocess
 
 import pytest
 
-from anyscale_testbed.testbed_record import (TestbedRecord, duplicate_instances, first_after,
-                                             handover_windows, link_transitions, longest_gap,
-                                             mapping_at)
+from anyscale_testbed.testbed_figures import (duplicate_instances, first_after, handover_windows,
+                                              link_transitions, longest_gap)
+from anyscale_testbed.testbed_record import TestbedRecord, mapping_at
 from anyscale_testbed.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
 
 HERE = os.path.dirname(os.path.abspath(__file__))

@@ -1,0 +1,298 @@
+"""The figures of one test-bed run, drawn from its record (testbed_record.py): gaps on output
+topics around each migration, silences longer than a connection's tolerance (violations), pose
+error against ground truth, how many live instances each migrated node had while the link could
+carry their traffic, and the end-of-run table. Pure (no ROS)."""
+from dataclasses import dataclass
+import bisect
+import math
+from typing import Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from .testbed_record import EventRecord, ProcessSample, TestbedRecord, Violation
+
+
+def longest_gap(times: Sequence[float], start: float, end: float) -> float:
+    """The longest silence within [start, end], counting the edges of the window."""
+    inside = [t for t in times if start <= t <= end]
+    points = [start] + inside + [end]
+    return max(b - a for a, b in zip(points, points[1:])) if end > start else 0.0
+
+
+def gap_during(times: Sequence[float], start: float, end: float) -> float:
+    """The longest silence that overlaps [start, end] (a move's window), from the last message
+    before it to the first after it (inf if the topic never spoke again)."""
+    return max(b - a for a, b in silences_overlapping(times, start, end))
+
+
+def silences_overlapping(times: Sequence[float], start: float,
+                         end: float) -> List[Tuple[float, float]]:
+    """The silences (last message, next message) that overlap [start, end], in time order;
+    -inf / inf where the topic had not spoken before or never spoke again."""
+    ordered = sorted(times)
+    before = [t for t in ordered if t <= start][-1:] or [-math.inf]
+    inside = [t for t in ordered if start < t <= end]
+    after = [t for t in ordered if t > end][:1] or [math.inf]
+    points = before + inside + after
+    return list(zip(points, points[1:]))
+
+
+def silences_longer_than(times: Sequence[float], limit: float,
+                         end: float) -> List[Tuple[float, float]]:
+    """The silences longer than `limit` from the first message to `end`: (last message before,
+    first message after, or `end` if none came). Before its first message a topic is starting,
+    not silent."""
+    ordered = sorted(t for t in times if t <= end)
+    points = ordered + [end] if ordered else []
+    return [(a, b) for a, b in zip(points, points[1:]) if b - a > limit]
+
+
+def first_after(times: Sequence[float], moment: float) -> float:
+    """Seconds from `moment` to the first message after it (inf if none)."""
+    ordered = sorted(times)
+    i = bisect.bisect_right(ordered, moment)
+    return ordered[i] - moment if i < len(ordered) else math.inf
+
+
+def reaction_s(times: Sequence[float], down: float, decided: float) -> float:
+    """Link down -> the first message on the node's output after the move back was decided
+    (inf if none). Messages before the decision are the remote instance's: in flight when the
+    link went, or sent in the few ms between the shaper's record of the change and the link
+    going down."""
+    return max(decided, down) - down + first_after(times, max(decided, down))
+
+
+def pose_errors(truth: Sequence[Tuple[float, float, float]],
+                estimate: Sequence[Tuple[float, float, float]]) -> np.ndarray:
+    """Position error of each estimate against the ground truth interpolated at its time."""
+    if len(truth) < 2 or not estimate:
+        return np.zeros(0)
+    tt, tx, ty = (np.asarray(c, dtype=float) for c in zip(*truth))
+    et, ex, ey = (np.asarray(c, dtype=float) for c in zip(*estimate))
+    inside = (et >= tt[0]) & (et <= tt[-1])
+    gx = np.interp(et[inside], tt, tx)
+    gy = np.interp(et[inside], tt, ty)
+    return np.hypot(ex[inside] - gx, ey[inside] - gy)
+
+
+# A planned move runs the old and the new instance side by side until the new one has
+# published (make before break): from its decision to at most this long after the new
+# instance registered.
+HANDOVER_S = 5.0
+
+
+def handover_windows(events: Sequence[EventRecord]) -> Dict[str, List[Tuple[float, float]]]:
+    """node -> (start, end) of each planned move's overlap. A return forced by a link loss has
+    none: its old instance could not be reached, and its lease ends it."""
+    out: Dict[str, List[Tuple[float, float]]] = {}
+    for e in events:
+        if e.kind in ("migrate", "migrate_back") and not e.reason.startswith("link to"):
+            registered = e.duration_s if math.isfinite(e.duration_s) else 0.0
+            out.setdefault(e.node, []).append(
+                (e.decided_t, e.decided_t + registered + HANDOVER_S))
+    return out
+
+
+def duplicate_instances(samples: Sequence[ProcessSample], nodes: Sequence[str],
+                        events: Sequence[EventRecord] = ()):
+    """Samples where a node had more than one live process while the link was up, i.e. where
+    two instances could both have been publishing, outside the overlap of a planned move
+    among `events`: [(t, node, namespaces)]."""
+    windows = handover_windows(events)
+    return [(s.t, n, s.instances.get(n, [])) for s in samples if s.link_up
+            for n in nodes if len(s.instances.get(n, [])) > 1
+            and not any(a <= s.t <= b for a, b in windows.get(n, []))]
+
+
+def link_transitions(bandwidth: Sequence[Tuple[float, float]]) -> List[Tuple[float, bool]]:
+    """(t, up) each time the modelled link went down (0 Mbit/s) or came back."""
+    out, up = [], None
+    for t, mbps in bandwidth:
+        now_up = mbps > 0
+        if now_up != up:
+            if up is not None:
+                out.append((t, now_up))
+            up = now_up
+    return out
+
+
+# After the new instance registered, its first output may take this long (a filter's first
+# update); the window of a move reaches this far past the registration.
+MOVE_SETTLE_S = 3.0
+# A silence may begin this long before the decision of the move it belongs to: a move back
+# forced by a link loss is decided after the link went, and the last message the link
+# carried came up to one period of the output at its freq_min before that (1 s for AR's
+# 1 Hz, 0.5 s for AMCL's 2 Hz).
+MOVE_LEAD_S = 1.0
+
+
+@dataclass(frozen=True)
+class MoveFigures:
+    event: EventRecord
+    output_gap_s: float        # the longest silence on the node's output topic that this move
+                               # owns (see move_figures); NaN if the run ended before the
+                               # move's window did, or if it was decided in a silence it does
+                               # not own
+    first_output_s: float      # decision -> first message on the output topic afterwards
+    silent_since_t: float = math.nan    # the output was already silent when the move was
+                                        # decided, since then (a silence this move does not own)
+    handover_s: float = math.nan        # the silence before the first message of another
+                                        # sender in the move's window (handover_silence)
+
+
+def handover_silence(rec: TestbedRecord, topic: str, start: float, end: float) -> float:
+    """The silence that ended with the first message from a new sender within [start, end]:
+    from the last message before it (of any sender) to it. 0-ish when the old instance still
+    published as the new one began (make before break). NaN if the record names no senders
+    (recorded before they were kept) or no new sender spoke in the window."""
+    changes = [t for t, _ in rec.senders.get(topic, []) if start <= t <= end]
+    if not changes:
+        return math.nan
+    before = [t for t in rec.receipts.get(topic, []) if t < changes[0]]
+    return changes[0] - before[-1] if before else math.nan
+
+
+def move_window(e: EventRecord) -> Tuple[float, float]:
+    """From the decision to MOVE_SETTLE_S after the new instance registered."""
+    settled = e.decided_t + (e.duration_s if math.isfinite(e.duration_s) else 0.0)
+    return e.decided_t, settled + MOVE_SETTLE_S
+
+
+def move_figures(rec: TestbedRecord, outputs: Dict[str, str]) -> List[MoveFigures]:
+    """For every migration of a node with a known output topic: the gap its subscriber saw.
+    A silence belongs to one move at most: the first one whose window it overlaps and that was
+    decided no more than MOVE_LEAD_S after it began. A later move in the same silence reports
+    since when the output was silent instead of counting the silence a second time."""
+    end = rec.finished_t if rec.finished_t is not None else _last_time(rec)
+    owned: Dict[str, set] = {}          # topic -> starts of the silences a move owns
+    figures = {}
+    moves = [e for e in rec.events if e.kind in ("migrate", "migrate_back") and e.node in outputs]
+    for e in sorted(moves, key=lambda e: e.decided_t):
+        topic = outputs[e.node]
+        times = rec.receipts.get(topic, [])
+        start, window_end = move_window(e)
+        first = first_after(times, e.decided_t)
+        if window_end > end:
+            figures[id(e)] = MoveFigures(e, math.nan, first)
+            continue
+        handover = handover_silence(rec, topic, start, window_end)
+        overlapping = silences_overlapping(times, start, window_end)
+        taken = owned.setdefault(topic, set())
+        mine = [(a, b) for a, b in overlapping if a >= start - MOVE_LEAD_S and a not in taken]
+        taken.update(a for a, _ in mine)
+        if overlapping[0] in mine:
+            gap = max(b - a for a, b in mine)
+            figures[id(e)] = MoveFigures(e, gap, first, handover_s=handover)
+        else:   # what follows in its window is the output coming back, not this move's gap
+            figures[id(e)] = MoveFigures(e, math.nan, first, overlapping[0][0], handover)
+    return [figures[id(e)] for e in moves]
+
+
+def tolerance_violations(rec: TestbedRecord, outputs: Optional[Dict[str, str]] = None,
+                         tolerances: Optional[Dict[str, float]] = None) -> List[Violation]:
+    """Every silence of an output topic longer than its connection's tolerance Δ (the
+    record's own outputs and tolerances unless given), with what happened around it."""
+    outputs = rec.outputs if outputs is None else outputs
+    tolerances = rec.tolerances if tolerances is None else tolerances
+    end = rec.finished_t if rec.finished_t is not None else _last_time(rec)
+    found = []
+    for topic, tol in sorted(tolerances.items()):
+        if tol <= 0:
+            continue            # a critical connection: pinned, never moved, no Δ to keep
+        nodes = {n for n, t in outputs.items() if t == topic}
+        for a, b in silences_longer_than(rec.receipts.get(topic, []), tol, end):
+            found.append(Violation(topic, a, b, b - a, tol,
+                                   silence_cause(rec, nodes, a, b, ran_to_end=b >= end)))
+    return sorted(found, key=lambda v: v.start_t)
+
+
+def silence_cause(rec: TestbedRecord, nodes, start: float, end: float,
+                  ran_to_end: bool = False) -> str:
+    """What happened to the topic's publishers and the link from shortly before a silence
+    began to its end, in time order, in words."""
+    near = [(t, f"link {'back' if up else 'down'} at t={t:.1f} s")
+            for t, up in link_transitions(rec.bandwidth) if start - MOVE_LEAD_S <= t <= end]
+    for e in rec.events:
+        first, last = move_window(e)
+        if e.node in nodes and first <= end and last >= start - MOVE_LEAD_S:
+            move = f" {e.from_scale} -> {e.to_scale}" if e.from_scale else f" on {e.to_scale}"
+            near.append((e.decided_t, f"{e.kind} {e.node}{move} at t={e.decided_t:.1f} s "
+                                      f"({e.reason})"))
+    words = [w for _, w in sorted(near)] or ["no move, restart or link change of "
+                                             f"{', '.join(sorted(nodes)) or 'its publisher'}"]
+    if ran_to_end:
+        words.append("silent until the run ended")
+    return "; ".join(words)
+
+
+# The word that marks a violation in the end table: plain in a log file, and red where the
+# table is printed to a terminal (colour_violations).
+VIOLATION = "VIOLATION"
+
+
+def colour_violations(line: str, terminal: bool) -> str:
+    """The line in red if it reports a violation and goes to a terminal, else as it is."""
+    return f"\033[31m{line}\033[0m" if terminal and VIOLATION in line else line
+
+
+def format_summary(rec: TestbedRecord, outputs: Dict[str, str],
+                   tolerances: Dict[str, float]) -> str:
+    """The end-of-run table: moves, gaps, localisation, link. A move's output gap is the longest
+    silence of the node's output in its window; its handover, the silence right before the new
+    instance's first message (handover_silence)."""
+    lines = [f"=== AnyScale test-bed run: world {rec.world}, link {rec.link}, "
+             f"{(rec.finished_t or _last_time(rec)):.0f} s"]
+    moves = [e for e in rec.events if e.kind in ("migrate", "migrate_back")]
+    failed = [e for e in rec.events if e.kind == "failed"]
+    lines.append(f"migrations: {sum(e.kind == 'migrate' for e in moves)} out, "
+                 f"{sum(e.kind == 'migrate_back' for e in moves)} back, {len(failed)} failed")
+    for e in rec.events:
+        if e.kind == "restart":
+            lines.append(f"  restarted {e.node} at t={e.decided_t:.1f} s: {e.reason}")
+    figures = move_figures(rec, outputs)
+    if figures:
+        lines.append(f"  {'t [s]':>7}  {'node':<16} {'move':<20} {'registered':>10} "
+                     f"{'output gap':>10} {'handover':>9}  reason")
+        for f in figures:
+            e = f.event
+            since = (f"; output silent since t={f.silent_since_t:.1f} s, before this move"
+                     if math.isfinite(f.silent_since_t) else "")
+            lines.append(f"  {e.decided_t:7.1f}  {e.node:<16} "
+                         f"{e.from_scale + ' -> ' + e.to_scale:<20} "
+                         f"{_seconds(e.duration_s):>10} {_seconds(f.output_gap_s):>10} "
+                         f"{_seconds(f.handover_s):>9}  {e.reason}{since}")
+    end = rec.finished_t or _last_time(rec)
+    for topic, tol in sorted(tolerances.items()):
+        times = rec.receipts.get(topic, [])
+        if times:
+            gap = longest_gap(times, times[0], end)
+            lines.append(f"{topic}: longest silence {gap:.2f} s (tolerance {tol:g} s) "
+                         f"after its first message")
+    violations = tolerance_violations(rec, outputs, tolerances)
+    lines.append(f"silences longer than their tolerance: {len(violations) or 'none'}")
+    for v in violations:
+        lines.append(f"  {VIOLATION} {v.topic}: silent {v.silence_s:.2f} s > tolerance "
+                     f"{v.tolerance_s:g} s from t={v.start_t:.1f} to {v.end_t:.1f} s: {v.cause}")
+    errors = pose_errors(rec.truth, rec.estimate)
+    if errors.size:
+        lines.append(f"AMCL position error vs ground truth: RMS {np.sqrt(np.mean(errors**2)):.3f}"
+                     f" m, max {errors.max():.3f} m over {errors.size} poses")
+    if rec.bandwidth:
+        up = np.array([b > 0 for _, b in rec.bandwidth])
+        lines.append(f"link: up {100 * up.mean():.0f} % of the samples, "
+                     f"{len(link_transitions(rec.bandwidth))} up/down changes")
+    if rec.mappings:
+        _, _, perf, objective = rec.mappings[-1]
+        lines.append(f"Perf of the last mapping (Eq. 1): {perf:.1f}; objective so far "
+                     f"(Eq. 2): {objective:.0f}")
+    return "\n".join(lines)
+
+
+def _seconds(v: float) -> str:
+    return f"{v:.2f} s" if math.isfinite(v) else "-"
+
+
+def _last_time(rec: TestbedRecord) -> float:
+    candidates = [rec.truth[-1][0]] if rec.truth else []
+    candidates += [ts[-1] for ts in rec.receipts.values() if ts]
+    return max(candidates, default=0.0)

@@ -15,7 +15,8 @@ quota that alone would take half a minute), then applies the quota, lets it sett
 and measures --duration s. While it measures, this process times the host-speed workload
 (anyscale_testbed/host_speed.py) every 5 s: its median CPU ms is printed beside the rates, so a
 calibration states the host speed it was made at (testbed_calibration.yaml's reference_cpu_ms;
-this shared VM's speed drifts, and a quota is a share of it).
+this shared VM's speed drifts, and a quota is a share of it). The lines and tables it prints are
+anyscale_testbed/cpu_calibration_report.py.
 
     sudo /usr/bin/python3 tests/bench/bench_cpu_calibration.py
     sudo /usr/bin/python3 tests/bench/bench_cpu_calibration.py --quotas 0.3,0.35,none --laptop-quotas 0.8
@@ -26,7 +27,6 @@ import argparse
 import json
 import os
 import signal
-import statistics
 import subprocess
 import sys
 import tempfile
@@ -39,18 +39,13 @@ import yaml
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "anyscale_testbed", "src"))
+from anyscale_testbed.cpu_calibration_report import (LAPTOP_NODES, ROBOT_NODES, SIM,  # noqa: E402
+                                                     TOPICS, print_report, qname, step_line)
 from anyscale_testbed.host_speed import HostSpeedMonitor  # noqa: E402
 from anyscale_testbed.two_scale_testbed import CpuQuota, cgroup_available  # noqa: E402
 
 PKG = os.path.join(ROOT, "src", "anyscale_nav_demo")
 CALIBRATION = os.path.join(PKG, "config", "testbed_calibration.yaml")
-ROBOT_NODES = ["laser", "odometer", "camera", "base_driver", "user", "map_server", "odometry", "ekf",
-               "navigation", "amcl", "ar_recognition"]
-LAPTOP_NODES = ["amcl", "ar_recognition"]
-SIM = "world_sim"
-# topic -> (Table I freq_min, freq_opt)
-TOPICS = {"/amcl_pose": (2, 5), "/ar_markers": (1, 30), "/scan": (5, 10), "/joint_states": (10, 40),
-          "/odom": (5, 10), "/odometry/filtered": (2, 5), "/camera/image_raw": (1, 30)}
 START = {"x": 7.4, "y": 5.9, "yaw": 0.0}     # robot.launch's defaults (office floor, start A)
 
 RATE_COUNTER = r"""
@@ -78,10 +73,6 @@ def parse_quotas(text):
         if q:
             out.append(0.0 if q in ("none", "0", "inf") else float(q))
     return out
-
-
-def qname(q):
-    return "none" if q <= 0 else "%.2f" % q
 
 
 class Bench:
@@ -268,50 +259,6 @@ def node_pid(master, name):
         return None
 
 
-def host_ms(result):
-    value = result.get("host_ms")
-    return float("nan") if value is None else value
-
-
-def print_table(title, results, nodes, laptop):
-    print("\n" + title)
-    cols = ["/amcl_pose", "/ar_markers", "/scan", "/joint_states", "/odom", "/odometry/filtered",
-            "/camera/image_raw"]
-    head = "%-7s %-7s" % ("robot", "laptop") + "".join("%9s" % c.split("/")[-1][:8] for c in cols)
-    print("rates (Hz; Table I min/opt: " + ", ".join("%s %d/%d" % (c.split("/")[-1], *TOPICS[c])
-                                                      for c in cols) + "); host_ms: the host-speed "
-          "workload's median CPU ms while they were counted")
-    print(head + "%9s" % "host_ms")
-    for r in results:
-        print("%-7s %-7s" % (qname(r["robot_q"]), "-" if r["laptop_q"] is None else qname(r["laptop_q"]))
-              + "".join("%9.2f" % r["rates"].get(c, float("nan")) for c in cols)
-              + "%9.1f" % host_ms(r))
-    print("CPU (% of one core; group = sum of its nodes; throttled = % of CFS periods)")
-    names = nodes + [SIM]
-    print("%-7s %-7s" % ("robot", "laptop") + "".join("%9s" % n[:8] for n in names)
-          + "%9s%9s%9s" % ("robot_g", "laptop_g", "thr_r/l"))
-    for r in results:
-        c = r["cpu"]
-        lap_set = set(LAPTOP_NODES) if laptop else set()
-        rg = sum(v for n, v in c.items() if n in ROBOT_NODES and n not in lap_set and v == v)
-        lg = sum(v for n, v in c.items() if n in lap_set and v == v)
-        th = []
-        for key in ("robot", "laptop"):
-            t = [v for k, v in r["throttle"].items() if k.endswith(key)]
-            th.append("%d" % (100.0 * t[0][1] / t[0][0]) if t and t[0][0] else "-")
-        print("%-7s %-7s" % (qname(r["robot_q"]), "-" if r["laptop_q"] is None else qname(r["laptop_q"]))
-              + "".join("%9.1f" % c.get(n, float("nan")) for n in names)
-              + "%9.1f%9s%9s" % (rg, "%.1f" % lg if laptop else "-", "/".join(th)))
-    if not laptop:
-        print("share of the robot group (AMCL / AR / navigation, cf. Table II: 50 / 33 / 20 %):")
-        for r in results:
-            c = r["cpu"]
-            rg = sum(v for n, v in c.items() if n in ROBOT_NODES and v == v) or float("nan")
-            print("  robot %-5s  amcl %4.0f %%  ar %4.0f %%  navigation %4.0f %%"
-                  % (qname(r["robot_q"]), 100 * c.get("amcl", 0) / rg, 100 * c.get("ar_recognition", 0) / rg,
-                     100 * c.get("navigation", 0) / rg))
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -375,42 +322,21 @@ def main():
                 % (qname(q), args.warmup, args.settle, args.duration))
             r = bench.step(q)
             results_r.append(r)
-            log("  /amcl_pose %.2f Hz, /ar_markers %.2f Hz, amcl %.1f %%, ar %.1f %% of a core, "
-                "host workload %.1f ms"
-                % (r["rates"]["/amcl_pose"], r["rates"]["/ar_markers"], r["cpu"].get("amcl", float("nan")),
-                   r["cpu"].get("ar_recognition", float("nan")), host_ms(r)))
+            log(step_line(r))
         for q in laptop_qs:
             log("laptop case: AMCL + AR in a %s-core group, rest of the robot at %s"
                 % (qname(q), qname(lr)))
             r = bench.step(lr, q)
             results_l.append(r)
-            log("  /amcl_pose %.2f Hz, /ar_markers %.2f Hz, amcl %.1f %%, ar %.1f %% of a core, "
-                "host workload %.1f ms"
-                % (r["rates"]["/amcl_pose"], r["rates"]["/ar_markers"], r["cpu"].get("amcl", float("nan")),
-                   r["cpu"].get("ar_recognition", float("nan")), host_ms(r)))
+            log(step_line(r))
     except KeyboardInterrupt:
         log("interrupted; cleaning up")
     finally:
         signal.signal(signal.SIGINT, signal.SIG_IGN)      # a second Ctrl-C must not stop the cleanup
         bench.close()
 
-    print("\nCPU calibration, %s, %d cores, world %s, %.0f s per step, %.0f s total"
-          % (time.strftime("%Y-%m-%d %H:%M"), psutil.cpu_count(), args.world, args.duration,
-             time.time() - t_start))
-    print("amcl: %s\nar_recognition: %s" % (args.amcl_params, args.ar_params))
-    samples = [ms for r in results_r + results_l for ms in r.get("host_samples", [])]
-    if samples:
-        print("host-speed workload (anyscale_testbed/host_speed.py): median %.1f ms of CPU over "
-              "the steps (%.1f-%.1f, %d measurements); the calibration file's reference_cpu_ms "
-              "is %s: state the median there if these quotas are chosen"
-              % (statistics.median(samples), min(samples), max(samples), len(samples),
-                 cal.get("reference_cpu_ms", "not set")))
-    if results_r:
-        print_table("ROBOT case: the robot's whole node set in one group (simulator outside)",
-                    results_r, ROBOT_NODES, laptop=False)
-    if results_l:
-        print_table("LAPTOP case: AMCL + AR alone in the laptop group, the rest in the robot group",
-                    results_l, ROBOT_NODES, laptop=True)
+    reference_cpu_ms = cal.get("reference_cpu_ms", "not set")
+    print_report(args, psutil.cpu_count(), time.time() - t_start, reference_cpu_ms, results_r, results_l)
     return 0
 
 

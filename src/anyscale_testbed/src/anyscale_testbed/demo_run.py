@@ -197,28 +197,8 @@ def main(default_out: str, argv=None) -> int:
             if normaliser:
                 print(PREFIX + normaliser_state(normaliser), flush=True)
             session = TestbedSession(bed, run_dir)
-            world = session.roslaunch(
-                "robot", "world", [
-                    "anyscale_testbed", "testbed_world.launch", f"world:={args.world}",
-                    f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}", f"link:={link}",
-                    f"schedule:={json.dumps(yaml.safe_load(args.schedule))}",
-                    f"seed:={args.seed}",
-                    f"record_path:={record}", f"results_dir:={os.path.join(run_dir, 'nav')}",
-                    f"duration_s:={args.duration}", f"rviz:={str(args.rviz).lower()}"],
-                cpu_quota=False, wait_for_master=False, echo=echo_monitor_lines)
-            # The world launch runs the simulator and the recorder outside the robot's quota.
-            session.roslaunch("robot", "robot", [
-                "anyscale_nav_demo", "robot.launch", "sim:=false", "record:=false",
-                f"world:={args.world}", f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}",
-                f"allocator:={args.allocator}", f"hysteresis_s:={args.hysteresis}",
-                f"uplink_interface:={bed.uplink_interface('robot')}",
-                f"warm_start:={str(not args.cold_start).lower()}"]
-                + ([f"goals:={json.dumps(goals)}"] if goals else [])
-                + ([f"hold_after_loss_s:={args.hold_after_loss}"]
-                   if args.hold_after_loss is not None else []))
-            session.roslaunch("laptop", "laptop", [
-                "anyscale_nav_demo", "laptop.launch", f"model:={model}",
-                f"warm_start:={str(not args.cold_start).lower()}"])
+            world = launch_demo(session, bed, args, model, (x, y, yaw), goals, record, run_dir,
+                                link)
             code = world.wait()
             print(PREFIX + f"run ended (world launch exit {code}); stopping both scales")
             return 0 if code == 0 else 1
@@ -243,6 +223,43 @@ def normaliser_state(normaliser: CpuNormaliser) -> str:
     quotas = ", ".join(f"{scale} {cores:.3f}" for scale, cores in normaliser.cores.items())
     return (f"host speed: workload {normaliser.median.value:.1f} ms of CPU now (calibrated at "
             f"{normaliser.reference_cpu_ms:g} ms): CPU quota {quotas or 'none'} cores")
+
+
+def launch_demo(session: TestbedSession, bed, args, model: str, start, goals, record: str,
+                run_dir: str, link: str, master_running: bool = False, respawn: bool = False,
+                echo=None):
+    """The demo's three launches on the bed: the world on the robot's side outside its CPU
+    quota (it brings up the master unless `master_running`), robot.launch and laptop.launch.
+    `args` are parse_args' (world, schedule, seed, duration, rviz, allocator, hysteresis,
+    hold_after_loss, cold_start); `respawn`: roslaunch starts the agents and the decision node
+    again when they end (the fault soak); `echo` gets each line of the world launch (default:
+    the monitor's lines and errors to the console). Returns the world launch's process: the
+    run ends with it."""
+    x, y, yaw = start
+    warm = str(not args.cold_start).lower()
+    world = session.roslaunch(
+        "robot", "world", [
+            "anyscale_testbed", "testbed_world.launch", f"world:={args.world}",
+            f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}", f"link:={link}",
+            f"schedule:={json.dumps(yaml.safe_load(args.schedule))}",
+            f"seed:={args.seed}",
+            f"record_path:={record}", f"results_dir:={os.path.join(run_dir, 'nav')}",
+            f"duration_s:={args.duration}", f"rviz:={str(args.rviz).lower()}"],
+        cpu_quota=False, wait_for_master=master_running, echo=echo or echo_monitor_lines)
+    # The world launch runs the simulator and the recorder outside the robot's quota.
+    session.roslaunch("robot", "robot", [
+        "anyscale_nav_demo", "robot.launch", "sim:=false", "record:=false",
+        f"world:={args.world}", f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}",
+        f"allocator:={args.allocator}", f"hysteresis_s:={args.hysteresis}",
+        f"uplink_interface:={bed.uplink_interface('robot')}", f"warm_start:={warm}",
+        f"respawn:={str(respawn).lower()}"]
+        + ([f"goals:={json.dumps(goals)}"] if goals else [])
+        + ([f"hold_after_loss_s:={args.hold_after_loss}"]
+           if args.hold_after_loss is not None else []))
+    session.roslaunch("laptop", "laptop", [
+        "anyscale_nav_demo", "laptop.launch", f"model:={model}", f"warm_start:={warm}",
+        f"respawn:={str(respawn).lower()}"])
+    return world
 
 
 def raise_interrupt(*_):

@@ -1,0 +1,476 @@
+"""The fault soak's verdicts, pure (no ROS): from what the soak sampled (its /proc census of
+instances and supervisors, the memory and file descriptors of the agents and the decision
+node, the faults as injected) and the monitor's record of the run, per fault its recovery
+time and the invariants it broke, per fault kind a row of the table, and the growth of
+memory and file descriptors. tests/bench/bench_fault_soak.py prints and writes these.
+
+Every time here is on the record's clock (s since the monitor started).
+
+The invariants (issue 15):
+- exactly one instance of each node: two live instances (or one on a scale the mapping does
+  not place it on) for longer than a lease plus LEASE_GRACE_S, outside a planned move's
+  make-before-break overlap, is a violation: an instance cut off from the robot ends only when
+  its lease runs out, so that long is allowed;
+- nodes that may not move (critical or pinned) never leave the master scale: not in the
+  mapping, not in an event, not as a process elsewhere;
+- every connection's tolerance Δ: an output silent longer than Δ, charged to the fault in
+  whose window its silence began;
+- the fault is recovered from before the next one: every supervisor (both agents, the
+  decision node, the master) runs once, every node runs once where the mapping places it,
+  every output has spoken since the fault ended, and the master lists a publisher for it;
+- nothing left behind at the end, and no growth of memory or file descriptors."""
+from dataclasses import dataclass, field
+import csv
+import math
+import statistics
+from typing import Dict, List, Optional, Sequence, Set, Tuple
+
+from .fault_schedule import KINDS, Fault
+from .testbed_record import (TestbedRecord, Violation, handover_windows, mapping_at,
+                             silences_longer_than)
+
+# An instance cut off from the robot runs until its lease ends; its agent checks leases about
+# once a second and the census samples twice a second: this long on top of the lease.
+LEASE_GRACE_S = 2.0
+# A silence that began this long before a fault is the fault's (its last message came just
+# before the fault struck): one period of AR's 1 Hz minimum.
+FAULT_LEAD_S = 1.0
+# Growth: a process sampled for at least MIN_SPAN_S after its first WARMUP_S (imports,
+# connections being made) is judged on the median of its last third against its first third.
+WARMUP_S = 20.0
+MIN_SPAN_S = 60.0
+RSS_GROWTH_MB = 5.0
+RSS_GROWTH_SHARE = 0.10
+FD_GROWTH = 5
+SUPERVISORS = ("agent_robot", "agent_laptop", "decision", "master")
+
+
+@dataclass
+class CensusSample:
+    t: float
+    instances: Dict[str, List[str]]      # node -> the scale of each live instance
+    supervisors: Dict[str, int]          # role (SUPERVISORS) -> live processes
+
+
+@dataclass
+class ResourceSample:
+    t: float
+    role: str
+    pid: int
+    rss_mb: float
+    fds: int
+
+
+@dataclass
+class InjectedFault:
+    fault: Fault            # as scheduled
+    t: float                # when it struck
+    end: float              # when it ended (link back, SIGCONT); = t if instantaneous
+    detail: str = ""        # what was hit, e.g. "pid 4711 on laptop"
+    error: str = ""         # why it could not be injected (then it is not judged)
+
+
+@dataclass
+class SoakModel:
+    """What the checks need of the system model and the decision node's settings."""
+    master: str                                  # the master scale
+    nodes: Sequence[str]
+    fixed: Set[str]                              # critical or pinned: never leave the master
+    instance_names: Dict[Tuple[str, str], str]   # (node, scale) -> its name on the master
+    lease_s: float
+
+
+@dataclass
+class FaultOutcome:
+    index: int              # 1-based, in the order injected
+    injected: InjectedFault
+    window_end: float       # the next fault's start, or the soak's end
+    recovery_s: float       # fault start -> recovered; inf if it was not before window_end
+    worst_silence: Tuple[str, float, float] = ("", 0.0, 0.0)   # topic, silence, its Δ
+    violations: List[str] = field(default_factory=list)
+
+    @property
+    def kind(self) -> str:
+        return self.injected.fault.kind
+
+
+@dataclass
+class Growth:
+    role: str
+    pid: int
+    span_s: float
+    rss_first_mb: float
+    rss_last_mb: float
+    fds_first: float
+    fds_last: float
+    grew: List[str]         # what grew, in words; empty if nothing did
+
+
+# --- per fault ----------------------------------------------------------------------------------
+def judge_faults(faults: Sequence[InjectedFault], census: Sequence[CensusSample],
+                 rec: TestbedRecord, model: SoakModel, end_t: float) -> List[FaultOutcome]:
+    """Each injected fault's recovery and violations, its window reaching to the next fault."""
+    ordered = sorted(faults, key=lambda f: f.t)
+    outcomes = []
+    for i, f in enumerate(ordered):
+        window_end = ordered[i + 1].t if i + 1 < len(ordered) else end_t
+        outcomes.append(FaultOutcome(i + 1, f, window_end, math.inf))
+    judged = [o for o in outcomes if not o.injected.error]
+    for o in judged:
+        o.recovery_s = recovery_s(o.injected, o.window_end, census, rec, model)
+        if not math.isfinite(o.recovery_s):
+            o.violations.append(f"not recovered within {o.window_end - o.injected.t:.1f} s: "
+                                f"{unhealthy_reason(census, rec, model, o.injected.end, o.window_end)}")
+    for t, text in instance_violations(census, rec, model):
+        _charge(judged, t, text)
+    for t, text in fixed_node_violations(census, rec, model):
+        _charge(judged, t, text)
+    for v in output_violations(rec, end_t):
+        _charge(judged, v.start_t,
+                f"{v.topic} silent {v.silence_s:.2f} s > Δ {v.tolerance_s:g} s from "
+                f"t={v.start_t:.1f} s")
+    for o in judged:
+        o.worst_silence = worst_silence(rec, o.injected.t - FAULT_LEAD_S, o.window_end)
+    return outcomes
+
+
+def _charge(outcomes: Sequence[FaultOutcome], t: float, text: str):
+    """A violation found at `t` goes to the fault in whose window it began (a violation before
+    the first fault is the start-up's, not a fault's, and is not charged)."""
+    owner = None
+    for o in outcomes:
+        if o.injected.t - FAULT_LEAD_S <= t:
+            owner = o
+    if owner is not None and text not in owner.violations:
+        owner.violations.append(text)
+
+
+def healthy(sample: CensusSample, mapping: Dict[str, str], model: SoakModel) -> Optional[str]:
+    """None if the sample is healthy, else why not, in words."""
+    down = [r for r in SUPERVISORS if sample.supervisors.get(r, 0) != 1]
+    if down:
+        return ", ".join(f"{r} x{sample.supervisors.get(r, 0)}" for r in down)
+    for node in model.nodes:
+        scales = sample.instances.get(node, [])
+        where = mapping.get(node, model.master)
+        if scales != [where]:
+            return f"{node} on [{', '.join(scales)}], mapped to {where}"
+    return None
+
+
+def recovery_s(f: InjectedFault, window_end: float, census: Sequence[CensusSample],
+               rec: TestbedRecord, model: SoakModel) -> float:
+    """From the fault's start to the first census sample after its end at which the system is
+    whole again (see the module's docstring); inf if none came before `window_end`."""
+    for s in census:
+        if s.t < f.end or s.t > window_end:
+            continue
+        if healthy(s, mapping_at(rec, s.t), model) is None and \
+                outputs_spoke(rec, f.end, s.t) and publishers_listed(rec, model, f.end, s.t):
+            return s.t - f.t
+    return math.inf
+
+
+def unhealthy_reason(census: Sequence[CensusSample], rec: TestbedRecord, model: SoakModel,
+                     since: float, until: float) -> str:
+    """Why the system was not whole at the end of a window, in words, for the report."""
+    inside = [s for s in census if since <= s.t <= until]
+    if not inside:
+        return "no census sample in the window"
+    last = inside[-1]
+    why = healthy(last, mapping_at(rec, last.t), model)
+    if why:
+        return f"at t={last.t:.1f} s: {why}"
+    silent = [t for t in sorted(rec.tolerances) if not any(since < x <= last.t
+                                                             for x in rec.receipts.get(t, []))]
+    if silent:
+        return f"no message on {', '.join(silent)} since the fault ended"
+    missing = unlisted_publishers(rec, model, since, last.t)
+    return (f"the master lists no publisher {missing}" if missing
+            else "the master could not be asked since the fault ended")
+
+
+def outputs_spoke(rec: TestbedRecord, since: float, until: float) -> bool:
+    """Every output with a tolerance has had a message in (since, until]."""
+    return all(any(since < t <= until for t in rec.receipts.get(topic, []))
+               for topic in rec.tolerances)
+
+
+def publishers_listed(rec: TestbedRecord, model: SoakModel, since: float,
+                      until: float) -> bool:
+    """At a master poll in (since, until], each output's node was registered as its publisher
+    under the instance name of the scale the mapping places it on."""
+    return any(not _unlisted(publishers, mapping_at(rec, t), rec, model)
+               for t, publishers in rec.master_publishers if since < t <= until)
+
+
+def unlisted_publishers(rec: TestbedRecord, model: SoakModel, since: float,
+                        until: float) -> str:
+    polls = [(t, p) for t, p in rec.master_publishers if since < t <= until]
+    if not polls:
+        return ""
+    t, publishers = polls[-1]
+    return ", ".join(_unlisted(publishers, mapping_at(rec, t), rec, model))
+
+
+def _unlisted(publishers: Dict[str, List[str]], mapping: Dict[str, str], rec: TestbedRecord,
+              model: SoakModel) -> List[str]:
+    out = []
+    for node, topic in sorted(rec.outputs.items()):
+        name = model.instance_names.get((node, mapping.get(node, model.master)))
+        if name is not None and name not in publishers.get(topic, []):
+            out.append(f"{name} of {topic}")
+    return out
+
+
+def instance_violations(census: Sequence[CensusSample], rec: TestbedRecord,
+                        model: SoakModel) -> List[Tuple[float, str]]:
+    """(start, text) of every stretch in which a node ran twice or on a scale the mapping did
+    not place it on, for longer than a lease plus LEASE_GRACE_S, outside a planned move's
+    overlap. A node with no instance is not counted here: that is a recovery not yet done."""
+    allowed = model.lease_s + LEASE_GRACE_S
+    windows = handover_windows(rec.events)
+    found = []
+    for node in model.nodes:
+        start: Optional[CensusSample] = None
+        last: Optional[CensusSample] = None
+        for s in list(census) + [None]:
+            bad = s is not None and _misplaced(s, node, mapping_at(rec, s.t), model) and \
+                not any(a <= s.t <= b for a, b in windows.get(node, []))
+            if bad:
+                start = start or s
+                last = s
+                continue
+            if start is not None and last.t - start.t > allowed:
+                scales = ", ".join(start.instances.get(node, []))
+                where = mapping_at(rec, start.t).get(node, model.master)
+                found.append((start.t, f"{node} on [{scales}] (mapped to {where}) for "
+                                       f"{last.t - start.t:.1f} s from t={start.t:.1f} s "
+                                       f"(a lease is {model.lease_s:g} s)"))
+            start = last = None
+    return sorted(found)
+
+
+def _misplaced(s: CensusSample, node: str, mapping: Dict[str, str], model: SoakModel) -> bool:
+    scales = s.instances.get(node, [])
+    return len(scales) > 1 or (len(scales) == 1 and scales[0] != mapping.get(node, model.master))
+
+
+def fixed_node_violations(census: Sequence[CensusSample], rec: TestbedRecord,
+                          model: SoakModel) -> List[Tuple[float, str]]:
+    """(t, text) of each sign that a node that may not move did: a move event, a mapping that
+    places it off the master, a live process of it on another scale (first of each)."""
+    found: Dict[Tuple[str, str], Tuple[float, str]] = {}
+    for e in rec.events:
+        if e.node in model.fixed and e.kind in ("migrate", "migrate_back"):
+            found.setdefault((e.node, "event"), (e.decided_t, f"{e.kind} of {e.node} "
+                                                 f"{e.from_scale} -> {e.to_scale} (it may not "
+                                                 f"move)"))
+    for t, mapping, _, _ in rec.mappings:
+        for node in model.fixed:
+            if mapping.get(node, model.master) != model.master:
+                found.setdefault((node, "mapping"), (t, f"the mapping placed {node} on "
+                                                        f"{mapping[node]} (it may not move)"))
+    for s in census:
+        for node in model.fixed:
+            away = [x for x in s.instances.get(node, []) if x != model.master]
+            if away:
+                found.setdefault((node, "process"), (s.t, f"{node} ran on {away[0]} at "
+                                                          f"t={s.t:.1f} s (it may not move)"))
+    return sorted(found.values())
+
+
+def output_violations(rec: TestbedRecord, end_t: float) -> List[Violation]:
+    """Every silence of an output longer than its Δ until `end_t` (the soak's end)."""
+    found = []
+    for topic, tol in sorted(rec.tolerances.items()):
+        if tol <= 0:
+            continue
+        for a, b in silences_longer_than(rec.receipts.get(topic, []), tol, end_t):
+            found.append(Violation(topic, a, b, b - a, tol, ""))
+    return sorted(found, key=lambda v: v.start_t)
+
+
+def worst_silence(rec: TestbedRecord, since: float, until: float) -> Tuple[str, float, float]:
+    """The output silence, begun in [since, until), that is longest against its Δ:
+    (topic, silence, Δ); ("", 0, 0) if no output has a tolerance."""
+    best = ("", 0.0, 0.0)
+    for topic, tol in sorted(rec.tolerances.items()):
+        if tol <= 0:
+            continue
+        times = sorted(rec.receipts.get(topic, []))
+        points = times + [until]
+        for a, b in zip(points, points[1:]):
+            silence = min(b, until) - a
+            if since <= a < until and silence > 0 and \
+                    (not best[0] or silence / tol > best[1] / best[2]):
+                best = (topic, silence, tol)
+    return best
+
+
+# --- growth -------------------------------------------------------------------------------------
+def growth(samples: Sequence[ResourceSample]) -> List[Growth]:
+    """For each process (role and pid) sampled long enough: its memory and file descriptors,
+    first third against last third (medians) after its warm-up, and whether they grew."""
+    by_process: Dict[Tuple[str, int], List[ResourceSample]] = {}
+    for s in samples:
+        by_process.setdefault((s.role, s.pid), []).append(s)
+    out = []
+    for (role, pid), series in sorted(by_process.items()):
+        series = sorted(series, key=lambda s: s.t)
+        judged = [s for s in series if s.t >= series[0].t + WARMUP_S]
+        if len(judged) < 6 or judged[-1].t - judged[0].t < MIN_SPAN_S:
+            continue
+        third = len(judged) // 3
+        first, last = judged[:third], judged[-third:]
+        rss0 = statistics.median(s.rss_mb for s in first)
+        rss1 = statistics.median(s.rss_mb for s in last)
+        fd0 = statistics.median(s.fds for s in first)
+        fd1 = statistics.median(s.fds for s in last)
+        grew = []
+        if rss1 - rss0 > max(RSS_GROWTH_MB, RSS_GROWTH_SHARE * rss0):
+            grew.append(f"memory {rss0:.1f} -> {rss1:.1f} MB")
+        if fd1 - fd0 >= FD_GROWTH:
+            grew.append(f"file descriptors {fd0:g} -> {fd1:g}")
+        out.append(Growth(role, pid, judged[-1].t - judged[0].t, rss0, rss1, fd0, fd1, grew))
+    return out
+
+
+# --- the table ----------------------------------------------------------------------------------
+@dataclass
+class KindRow:
+    kind: str
+    faults: int
+    not_injected: int
+    recovered: int
+    worst_recovery_s: float
+    median_recovery_s: float
+    worst_silence: Tuple[str, float, float]
+    violations: int
+
+
+def kind_rows(outcomes: Sequence[FaultOutcome]) -> List[KindRow]:
+    rows = []
+    for kind in KINDS:
+        mine = [o for o in outcomes if o.kind == kind]
+        judged = [o for o in mine if not o.injected.error]
+        times = [o.recovery_s for o in judged]
+        finite = [t for t in times if math.isfinite(t)]
+        silences = [o.worst_silence for o in judged if o.worst_silence[0]]
+        rows.append(KindRow(
+            kind, len(mine), len(mine) - len(judged), len(finite),
+            max(times) if times else math.nan,
+            statistics.median(finite) if finite else math.nan,
+            max(silences, key=lambda w: w[1] / w[2], default=("", 0.0, 0.0)),
+            sum(len(o.violations) for o in judged)))
+    return rows
+
+
+HEADER = ["fault kind", "count", "recovered", "worst recovery", "median recovery",
+          "worst output silence / Δ", "violations"]
+
+
+def _cells(r: KindRow) -> List[str]:
+    injected = r.faults - r.not_injected
+    count = f"{r.faults}" + (f" ({r.not_injected} not injected)" if r.not_injected else "")
+    return [r.kind, count, f"{r.recovered}/{injected}", _seconds(r.worst_recovery_s),
+            _seconds(r.median_recovery_s),
+            f"{r.worst_silence[1]:.2f}/{r.worst_silence[2]:g} s {r.worst_silence[0]}"
+            if r.worst_silence[0] else "-", str(r.violations)]
+
+
+def _seconds(v: float) -> str:
+    if math.isnan(v):
+        return "-"
+    return "never" if math.isinf(v) else f"{v:.2f} s"
+
+
+def total_line(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
+               growths: Sequence[Growth]) -> str:
+    violations = sum(len(o.violations) for o in outcomes)
+    grew = [g for g in growths if g.grew]
+    return (f"total: {len(outcomes)} faults, {violations} violations, {len(leaks)} leaks, "
+            f"{len(grew)} processes grew")
+
+
+def verdict_ok(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
+               growths: Sequence[Growth]) -> bool:
+    return (not any(o.violations for o in outcomes) and not leaks
+            and not any(g.grew for g in growths)
+            and not any(o.injected.error for o in outcomes))
+
+
+def detail_lines(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
+                 growths: Sequence[Growth]) -> List[str]:
+    """Below the table: faults not injected, each violation with its fault, the leaks, the
+    growth of each process judged."""
+    lines = [f"NOT INJECTED fault {o.index} {o.kind} at t={o.injected.t:.1f} s: "
+             f"{o.injected.error}" for o in outcomes if o.injected.error]
+    for o in outcomes:
+        for v in o.violations:
+            lines.append(f"VIOLATION fault {o.index} {o.kind} at t={o.injected.t:.1f} s "
+                         f"({o.injected.fault.describe()}): {v}")
+    lines += [f"LEAK {x}" for x in leaks]
+    for g in growths:
+        state = "GREW " + "; ".join(g.grew) if g.grew else "steady"
+        lines.append(f"{g.role} pid {g.pid} over {g.span_s:.0f} s: memory {g.rss_first_mb:.1f}"
+                     f" -> {g.rss_last_mb:.1f} MB, fds {g.fds_first:g} -> {g.fds_last:g}: {state}")
+    return lines
+
+
+def format_table(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
+                 growths: Sequence[Growth]) -> str:
+    table = [HEADER] + [_cells(r) for r in kind_rows(outcomes)]
+    widths = [max(len(line[i]) for line in table) for i in range(len(HEADER))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(line, widths)).rstrip() for line in table]
+    return "\n".join(lines + detail_lines(outcomes, leaks, growths)
+                     + [total_line(outcomes, leaks, growths)])
+
+
+def format_markdown(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
+                    growths: Sequence[Growth], title: str) -> str:
+    lines = [f"# {title}", "", "| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
+    lines += ["| " + " | ".join(_cells(r)) + " |" for r in kind_rows(outcomes)]
+    lines += ["", "## Faults", "", "| # | t [s] | kind | what | recovery | violations |",
+              "|---|---|---|---|---|---|"]
+    for o in outcomes:
+        what = o.injected.fault.describe() + (f" ({o.injected.detail})" if o.injected.detail
+                                              else "")
+        lines.append(f"| {o.index} | {o.injected.t:.1f} | {o.kind} | {what} | "
+                     f"{'not injected: ' + o.injected.error if o.injected.error else _seconds(o.recovery_s)}"
+                     f" | {len(o.violations)} |")
+    lines += ["", "## Findings", ""]
+    lines += [f"- {x}" for x in detail_lines(outcomes, leaks, growths)] or ["none"]
+    lines += ["", total_line(outcomes, leaks, growths), ""]
+    return "\n".join(lines)
+
+
+def write_csv(path: str, outcomes: Sequence[FaultOutcome]):
+    """One line per fault kind, then one per fault (its violations in one cell)."""
+    with open(path, "w", newline="") as f:
+        out = csv.writer(f)
+        out.writerow(["row", "kind", "faults", "recovered", "worst_recovery_s",
+                      "median_recovery_s", "worst_silence_topic", "worst_silence_s",
+                      "tolerance_s", "violations"])
+        for r in kind_rows(outcomes):
+            out.writerow(["kind", r.kind, r.faults - r.not_injected, r.recovered,
+                          _number(r.worst_recovery_s), _number(r.median_recovery_s),
+                          r.worst_silence[0], _number(r.worst_silence[1]) if r.worst_silence[0]
+                          else "", _number(r.worst_silence[2]) if r.worst_silence[0] else "",
+                          r.violations])
+        out.writerow([])
+        out.writerow(["row", "index", "kind", "t_s", "what", "detail", "error", "recovery_s",
+                      "worst_silence_topic", "worst_silence_s", "violations",
+                      "violation_details"])
+        for o in outcomes:
+            out.writerow(["fault", o.index, o.kind, f"{o.injected.t:.2f}",
+                          o.injected.fault.describe(), o.injected.detail, o.injected.error,
+                          _number(o.recovery_s), o.worst_silence[0],
+                          _number(o.worst_silence[1]) if o.worst_silence[0] else "",
+                          len(o.violations), " | ".join(o.violations)])
+
+
+def _number(v: float) -> str:
+    if math.isnan(v):
+        return ""
+    return "inf" if math.isinf(v) else f"{v:.3f}"

@@ -50,6 +50,7 @@ class CensusSample:
     t: float
     instances: Dict[str, List[str]]      # node -> the scale of each live instance
     supervisors: Dict[str, int]          # role (SUPERVISORS) -> live processes
+    processes: int = 0                   # every live process of this ROS system
 
 
 @dataclass
@@ -306,6 +307,23 @@ def worst_silence(rec: TestbedRecord, since: float, until: float) -> Tuple[str, 
                     (not best[0] or silence / tol > best[1] / best[2]):
                 best = (topic, silence, tol)
     return best
+
+
+def process_leak(census: Sequence[CensusSample], rec: TestbedRecord,
+                 model: SoakModel) -> List[str]:
+    """A leak of processes: more processes of the ROS system at the last healthy sample than
+    at the first one with the same placement of every node (standbys, launchers, nodes and
+    supervisors are all counted; a killed agent's orphans would show here)."""
+    whole = [s for s in census if healthy(s, mapping_at(rec, s.t), model) is None]
+    if len(whole) < 2:
+        return []
+    last = whole[-1]
+    same = [s for s in whole if s.instances == last.instances]
+    first = same[0]
+    if last.processes > first.processes:
+        return [f"{last.processes} processes of the ROS system at t={last.t:.1f} s against "
+                f"{first.processes} at t={first.t:.1f} s, every node placed alike"]
+    return []
 
 
 # --- growth -------------------------------------------------------------------------------------

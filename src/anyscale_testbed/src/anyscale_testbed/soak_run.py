@@ -403,10 +403,11 @@ def main(root: str, argv=None) -> int:
                                 echo=quiet_world)
             sampler.start()
             try:
-                injected = run_schedule(schedule, sampler, injector, world)
+                run_schedule(schedule, sampler, injector, world, injected)
             finally:
                 injector.resume_stopped()
                 sampler.stopped.set()
+                sampler.join(5.0)
                 say("bench_fault_soak: ending the run (the monitor saves its record)")
                 interrupt_then_kill(world, 30.0)
     except TwoScaleError as e:
@@ -420,10 +421,11 @@ def main(root: str, argv=None) -> int:
     return report(out, args, schedule, injected, sampler, record_path, soak, left)
 
 
-def run_schedule(schedule, sampler: Sampler, injector: Injector,
-                 world: subprocess.Popen) -> List[InjectedFault]:
-    """Waits for the initial configuration, then injects each fault at its time; returns them
-    as injected (wall clock). Stops early if the world launch ends."""
+def run_schedule(schedule, sampler: Sampler, injector: Injector, world: subprocess.Popen,
+                 injected: List[InjectedFault]):
+    """Waits for the initial configuration, then injects each fault at its time, adding it to
+    `injected` (wall clock) as it goes, so that an interrupted soak keeps what it did. Stops
+    early if the world launch ends."""
     began = time.time()
     say("bench_fault_soak: waiting for every node to run once and AMCL to be on the laptop")
     while time.time() - began < SETUP_TIMEOUT_S and world.poll() is None:
@@ -435,7 +437,6 @@ def run_schedule(schedule, sampler: Sampler, injector: Injector,
     say(f"bench_fault_soak: set up after {time.time() - began:.0f} s: "
         f"{describe_state(sampler.latest())}")
     t0 = time.time()
-    injected = []
     for i, fault in enumerate(schedule, 1):
         while time.time() < t0 + fault.t and world.poll() is None:
             time.sleep(0.1)
@@ -461,7 +462,6 @@ def run_schedule(schedule, sampler: Sampler, injector: Injector,
         while time.time() < settle_until and world.poll() is None:
             time.sleep(0.2)
         say(f"bench_fault_soak: after the last fault: {describe_state(sampler.latest())}")
-    return injected
 
 
 def report(out: str, args, schedule, injected: List[InjectedFault], sampler: Sampler,

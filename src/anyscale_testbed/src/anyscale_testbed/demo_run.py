@@ -89,6 +89,15 @@ def calibrated_reference_ms(path: str) -> float:
     return reference
 
 
+def quota_cores(robot_cpu, laptop_cpu):
+    """(robot, laptop) CPU quota in cores: those given, the calibration file's for a None."""
+    if robot_cpu is None or laptop_cpu is None:
+        calibrated = calibrated_cores(nav_demo_path("config", "testbed_calibration.yaml"))
+        robot_cpu = calibrated[0] if robot_cpu is None else robot_cpu
+        laptop_cpu = calibrated[1] if laptop_cpu is None else laptop_cpu
+    return robot_cpu, laptop_cpu
+
+
 def parse_args(argv, default_out: str):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -151,13 +160,9 @@ def main(default_out: str, argv=None) -> int:
     """One run; `default_out` is where --out defaults to (the caller's results/testbed)."""
     args = parse_args(argv, default_out)
     model = args.model or nav_demo_path("config", "testbed.yaml")
-    robot_cpu, laptop_cpu = args.robot_cpu, args.laptop_cpu
-    calibration = nav_demo_path("config", "testbed_calibration.yaml")
-    reference_ms = calibrated_reference_ms(calibration) if args.normalise_cpu else None
-    if robot_cpu is None or laptop_cpu is None:
-        calibrated = calibrated_cores(calibration)
-        robot_cpu = calibrated[0] if robot_cpu is None else robot_cpu
-        laptop_cpu = calibrated[1] if laptop_cpu is None else laptop_cpu
+    robot_cpu, laptop_cpu = quota_cores(args.robot_cpu, args.laptop_cpu)
+    reference_ms = (calibrated_reference_ms(nav_demo_path("config", "testbed_calibration.yaml"))
+                    if args.normalise_cpu else None)
     (x, y, yaw), goals = world_start(args.world, args.start_goal)
 
     missing = [] if args.loopback else missing_capabilities()

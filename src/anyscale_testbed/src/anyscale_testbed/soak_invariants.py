@@ -26,8 +26,7 @@ import statistics
 from typing import Dict, List, Optional, Sequence, Set, Tuple
 
 from .fault_schedule import KINDS, Fault
-from .testbed_record import (TestbedRecord, Violation, handover_windows, mapping_at,
-                             silences_longer_than)
+from .testbed_record import TestbedRecord, handover_windows, mapping_at, tolerance_violations
 
 # An instance cut off from the robot runs until its lease ends; its agent checks leases about
 # once a second and the census samples twice a second: this long on top of the lease.
@@ -126,7 +125,7 @@ def judge_faults(faults: Sequence[InjectedFault], census: Sequence[CensusSample]
         _charge(judged, t, text)
     for t, text in fixed_node_violations(census, rec, model):
         _charge(judged, t, text)
-    for v in output_violations(rec, end_t):
+    for v in tolerance_violations(rec):
         _charge(judged, v.start_t,
                 f"{v.topic} silent {v.silence_s:.2f} s > Δ {v.tolerance_s:g} s from "
                 f"t={v.start_t:.1f} s")
@@ -279,17 +278,6 @@ def fixed_node_violations(census: Sequence[CensusSample], rec: TestbedRecord,
                 found.setdefault((node, "process"), (s.t, f"{node} ran on {away[0]} at "
                                                           f"t={s.t:.1f} s (it may not move)"))
     return sorted(found.values())
-
-
-def output_violations(rec: TestbedRecord, end_t: float) -> List[Violation]:
-    """Every silence of an output longer than its Δ until `end_t` (the soak's end)."""
-    found = []
-    for topic, tol in sorted(rec.tolerances.items()):
-        if tol <= 0:
-            continue
-        for a, b in silences_longer_than(rec.receipts.get(topic, []), tol, end_t):
-            found.append(Violation(topic, a, b, b - a, tol, ""))
-    return sorted(found, key=lambda v: v.start_t)
 
 
 def worst_silence(rec: TestbedRecord, since: float, until: float) -> Tuple[str, float, float]:

@@ -11,7 +11,6 @@ runs, a thread samples /proc twice a second: every instance of every node and it
 supervisors (agents, decision node, master), and the memory and file descriptors of the
 agents and the decision node. The monitor node records the outputs, the mapping, the events
 and the master's publishers as in every test-bed run."""
-import argparse
 import datetime
 import json
 import math
@@ -23,12 +22,14 @@ import time
 from dataclasses import asdict
 from typing import Dict, List, Optional, Tuple
 
+from anyscale_core.characterisation import critical_node_names
+from anyscale_core.cli_common import OneLineParser
 from anyscale_core.model import ModelError
 from anyscale_core.model_loader import load_model
 
 from . import fault_schedule as fs
-from .bench_runs import interrupt_on_sigterm, interrupt_then_kill
-from .demo_run import calibrated_cores, launch_demo, nav_demo_path, world_start
+from .bench_runs import interrupt_then_kill, start_on_the_testbed
+from .demo_run import launch_demo, nav_demo_path, quota_cores, world_start
 from .demo_run import parse_args as demo_args
 from .link_shaper import LinkSetting, apply_setting
 from .proc_census import master_processes, memory_and_fds, processes_with_master
@@ -38,7 +39,7 @@ from .soak_invariants import (CensusSample, InjectedFault, ResourceSample, SoakM
 from .testbed_monitor_ros import node_processes
 from .testbed_record import TestbedRecord
 from .testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
-from .two_scale_testbed import TwoScaleError, missing_capabilities, run
+from .two_scale_testbed import TwoScaleError, run
 
 WORLD = "small_loop"
 # The supervised processes: the name roslaunch gives them -> their role.
@@ -52,13 +53,6 @@ SAMPLE_PERIOD_S = 0.5
 SETUP_TIMEOUT_S = 90.0
 ROSCORE_UP_TIMEOUT_S = 15.0
 LOOP_S = 40.0               # the small loop takes longer than this at the robot's top speed
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """Bad input: one line and exit 2 (argparse's usage block stays for --help)."""
-
-    def error(self, message):
-        self.exit(2, f"{self.prog}: {message}\n")
 
 
 def parse_args(argv):
@@ -107,9 +101,8 @@ def parse_args(argv):
 
 
 def soak_model(model) -> SoakModel:
-    critical = {n for c in model.connections if c.tolerance == 0
-                for n in (c.publisher, c.subscriber)}
-    fixed = critical | {n.name for n in model.nodes if n.pinned is not None}
+    fixed = set(critical_node_names(model)) | {n.name for n in model.nodes
+                                                if n.pinned is not None}
     return SoakModel(model.master.name, list(model.node_names), fixed,
                      {(n, s): model.instance_name(n, s) for n in model.node_names
                       for s in model.scale_names}, LEASE_S)
@@ -361,16 +354,8 @@ def main(root: str, argv=None) -> int:
         for i, f in enumerate(schedule, 1):
             say(f"  [{i:2d}] t={f.t:6.1f} s  {f.kind:<18} {f.describe()}")
         return 0
-    interrupt_on_sigterm()
-    missing = missing_capabilities()
-    if missing:
-        say("bench_fault_soak: the test bed needs " + "; ".join(missing))
-        return 2
-    robot_cpu, laptop_cpu = args.robot_cpu, args.laptop_cpu
-    if robot_cpu is None or laptop_cpu is None:
-        calibrated = calibrated_cores(nav_demo_path("config", "testbed_calibration.yaml"))
-        robot_cpu = calibrated[0] if robot_cpu is None else robot_cpu
-        laptop_cpu = calibrated[1] if laptop_cpu is None else laptop_cpu
+    start_on_the_testbed("bench_fault_soak")
+    robot_cpu, laptop_cpu = quota_cores(args.robot_cpu, args.laptop_cpu)
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     out = os.path.abspath(args.out or os.path.join(root, "results", "bench_fault_soak", stamp))
     run_dir = os.path.join(out, "run")

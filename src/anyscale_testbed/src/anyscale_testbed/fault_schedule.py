@@ -30,9 +30,10 @@ LEVELS_MBPS = (27.0, 12.0, 6.0, 3.0)
 START_MBPS = 27.0
 
 # The pause after a fault before the next one, in s from the fault's end: what the test bed
-# needs to get back to one instance of every node in its place. A robot agent's restart
-# restarts every node of the robot under its CPU quota; a roscore restart needs the agents and
-# the decision node to register again.
+# needs to get back to one instance of every node in its place. A killed robot agent's nodes
+# run on and its successor adopts them (~nodes_outlive_agent), but the successor comes up
+# under the robot's CPU quota and the pause is kept for a node the adoption drops; a roscore
+# restart needs every registration and parameter back on the new master.
 SETTLE_S: Dict[str, float] = {
     LINK_FLAP: 6.0, BANDWIDTH_STEP: 5.0, KILL_LAPTOP_AGENT: 8.0, KILL_ROBOT_AGENT: 20.0,
     KILL_DECISION: 6.0, STOP_LAPTOP_AGENT: 6.0, SEGV_NODE: 6.0, RESTART_ROSCORE: 20.0}

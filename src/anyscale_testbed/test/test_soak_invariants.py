@@ -8,9 +8,10 @@ import pytest
 
 from anyscale_testbed import fault_schedule as fs
 from anyscale_testbed.soak_invariants import (
-    CensusSample, InjectedFault, ResourceSample, SoakModel, fixed_node_violations,
-    format_markdown, format_table, growth, judge_faults, kind_rows, process_leak, verdict_ok,
-    write_csv)
+    CensusSample, InjectedFault, ResourceSample, SoakModel, fixed_node_violations, growth,
+    judge_faults, process_leak)
+from anyscale_testbed.soak_report import (format_markdown, format_table, kind_rows, verdict_ok,
+                                          write_csv)
 from anyscale_testbed.testbed_record import EventRecord, TestbedRecord
 
 NODES = ["amcl", "ekf"]

@@ -22,9 +22,10 @@ ALL_UP = {"agent_robot": 1, "agent_laptop": 1, "decision": 1, "master": 1}
 END = 100.0
 
 
-def record(amcl_at="laptop", silent=(), unlisted=()):
+def record(amcl_at="laptop", silent=(), unlisted=(), ghost=()):
     """AMCL (Δ 2 s) publishing at 5 Hz except in the `silent` (start, end) spans, the master
-    listing its instance except in the `unlisted` spans; the mapping places it `amcl_at`."""
+    listing its instance except in the `unlisted` spans, and its instance on the other scale
+    too in the `ghost` spans; the mapping places it `amcl_at`."""
     rec = TestbedRecord()
     rec.outputs = {"amcl": "/amcl_pose"}
     rec.tolerances = {"/amcl_pose": 2.0}
@@ -33,8 +34,11 @@ def record(amcl_at="laptop", silent=(), unlisted=()):
                                    if not any(a <= t < b for a, b in silent)]}
     rec.mappings = [(0.0, {"amcl": amcl_at, "ekf": "robot"}, 0.0, 0.0)]
     name = MODEL.instance_names[("amcl", amcl_at)]
-    rec.master_publishers = [(t, {"/amcl_pose": [] if any(a <= t < b for a, b in unlisted)
-                                  else [name]}) for t in times[::5]]
+    other = MODEL.instance_names[("amcl", "robot" if amcl_at == "laptop" else "laptop")]
+    rec.master_publishers = [(t, {"/amcl_pose": ([] if any(a <= t < b for a, b in unlisted)
+                                                 else [name])
+                                  + ([other] if any(a <= t < b for a, b in ghost) else [])})
+                             for t in times[::5]]
     return rec
 
 
@@ -81,6 +85,25 @@ def test_an_instance_left_where_the_mapping_does_not_place_it_is_a_violation():
                        record(amcl_at="robot"), MODEL, END)
     assert any("mapped to robot" in v for v in o.violations), o.violations
     assert math.isinf(o.recovery_s)
+
+
+def test_a_publisher_the_master_lists_where_the_mapping_does_not_place_it_is_a_violation():
+    # The census sees one instance, on the laptop, as mapped; the master still lists the
+    # robot's /amcl as a publisher of /amcl_pose: 10 s is longer than a lease, 3 s is not.
+    kill = [fault(fs.KILL_LAPTOP_AGENT, 30.0)]
+    [o] = judge_faults(kill, census(), record(ghost=[(31.0, 41.0)]), MODEL, END)
+    assert len(o.violations) == 1 and o.violations[0].startswith(
+        "the master listed /amcl of /amcl_pose (not where the mapping places it) for 9.0 s")
+    [ok] = judge_faults(kill, census(), record(ghost=[(31.0, 34.0)]), MODEL, END)
+    assert ok.violations == []
+
+
+def test_a_publisher_listed_twice_during_a_planned_moves_overlap_is_no_violation():
+    rec = record(ghost=[(30.0, 38.0)])
+    rec.events = [EventRecord(30.0, "migrate", "amcl", "robot", "laptop", "laptop can take it",
+                              2.0, True, 30.0)]
+    [o] = judge_faults([fault(fs.BANDWIDTH_STEP, 29.0, mbps=12.0)], census(), rec, MODEL, END)
+    assert o.violations == []
 
 
 def test_an_output_silent_longer_than_its_tolerance_is_charged_to_the_fault_before_it():

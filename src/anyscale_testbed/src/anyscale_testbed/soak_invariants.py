@@ -11,6 +11,8 @@ The invariants (issue 15):
   not place it on) for longer than a lease plus LEASE_GRACE_S, outside a planned move's
   make-before-break overlap, is a violation: an instance cut off from the robot ends only when
   its lease runs out, so that long is allowed;
+- no publisher of a recorded topic on a scale the mapping does not place its node on, in the
+  master's lists, for longer than that (a registration can outlive its process);
 - nodes that may not move (critical or pinned) never leave the master scale: not in the
   mapping, not in an event, not as a process elsewhere;
 - every connection's tolerance Δ: an output silent longer than Δ, charged to the fault in
@@ -124,6 +126,8 @@ def judge_faults(faults: Sequence[InjectedFault], census: Sequence[CensusSample]
         _charge(judged, t, text)
     for t, text in fixed_node_violations(census, rec, model):
         _charge(judged, t, text)
+    for t, text in publisher_violations(rec, model):
+        _charge(judged, t, text)
     for v in tolerance_violations(rec):
         _charge(judged, v.start_t,
                 f"{v.topic} silent {v.silence_s:.2f} s > Δ {v.tolerance_s:g} s from "
@@ -227,27 +231,63 @@ def instance_violations(census: Sequence[CensusSample], rec: TestbedRecord,
     """(start, text) of every stretch in which a node ran twice or on a scale the mapping did
     not place it on, for longer than a lease plus LEASE_GRACE_S, outside a planned move's
     overlap. A node with no instance is not counted here: that is a recovery not yet done."""
-    allowed = model.lease_s + LEASE_GRACE_S
     windows = handover_windows(rec.events)
     found = []
     for node in model.nodes:
-        start: Optional[CensusSample] = None
-        last: Optional[CensusSample] = None
-        for s in list(census) + [None]:
-            bad = s is not None and _misplaced(s, node, mapping_at(rec, s.t), model) and \
-                not any(a <= s.t <= b for a, b in windows.get(node, []))
-            if bad:
-                start = start or s
-                last = s
-                continue
-            if start is not None and last.t - start.t > allowed:
-                scales = ", ".join(start.instances.get(node, []))
-                where = mapping_at(rec, start.t).get(node, model.master)
-                found.append((start.t, f"{node} on [{scales}] (mapped to {where}) for "
-                                       f"{last.t - start.t:.1f} s from t={start.t:.1f} s "
-                                       f"(a lease is {model.lease_s:g} s)"))
-            start = last = None
+        marks = [(s.t, ", ".join(s.instances.get(node, [])))
+                 for s in census if _misplaced(s, node, mapping_at(rec, s.t), model)
+                 and not any(a <= s.t <= b for a, b in windows.get(node, []))]
+        for start, end, scales in _long_stretches(marks, [s.t for s in census], model):
+            where = mapping_at(rec, start).get(node, model.master)
+            found.append((start, f"{node} on [{scales}] (mapped to {where}) for "
+                                 f"{end - start:.1f} s from t={start:.1f} s "
+                                 f"(a lease is {model.lease_s:g} s)"))
     return sorted(found)
+
+
+def publisher_violations(rec: TestbedRecord, model: SoakModel) -> List[Tuple[float, str]]:
+    """(start, text) of every stretch in which the master listed a node's instance on a scale
+    the mapping did not place it on as a publisher of a recorded topic, for longer than a
+    lease plus LEASE_GRACE_S, outside a planned move's overlap. The /proc census cannot see
+    this: a registration outlives its process (a partition, a kill -9) until the decision
+    node removes it, and subscribers keep connecting to it for as long as it is listed."""
+    instance_of = {name: key for key, name in model.instance_names.items()}
+    windows = handover_windows(rec.events)
+    polls = [t for t, _ in rec.master_publishers]
+    marks: Dict[str, List[Tuple[float, str]]] = {}
+    for t, publishers in rec.master_publishers:
+        mapping = mapping_at(rec, t)
+        for topic, names in sorted(publishers.items()):
+            for name in names:
+                node, scale = instance_of.get(name, (None, None))
+                if node is not None and scale != mapping.get(node, model.master) and \
+                        not any(a <= t <= b for a, b in windows.get(node, [])):
+                    marks.setdefault(f"{name} of {topic}", []).append((t, ""))
+    found = []
+    for what, times in sorted(marks.items()):
+        for start, end, _ in _long_stretches(times, polls, model):
+            found.append((start, f"the master listed {what} (not where the mapping places it) "
+                                 f"for {end - start:.1f} s from t={start:.1f} s (a lease is "
+                                 f"{model.lease_s:g} s)"))
+    return sorted(found)
+
+
+def _long_stretches(marks: Sequence[Tuple[float, str]], times: Sequence[float],
+                    model: SoakModel) -> List[Tuple[float, float, str]]:
+    """(first, last, first's text) of each run of consecutive sampled `times` that are all
+    marked, lasting longer than a lease plus LEASE_GRACE_S: a stretch ends at the first sample
+    that is not marked."""
+    marked = dict(marks)
+    found, first, last = [], None, None
+    for t in list(times) + [None]:
+        if t is not None and t in marked:
+            first = t if first is None else first
+            last = t
+            continue
+        if first is not None and last - first > model.lease_s + LEASE_GRACE_S:
+            found.append((first, last, marked[first]))
+        first = last = None
+    return found
 
 
 def _misplaced(s: CensusSample, node: str, mapping: Dict[str, str], model: SoakModel) -> bool:

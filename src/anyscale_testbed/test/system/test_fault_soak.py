@@ -16,7 +16,8 @@ import pytest
 
 from anyscale_testbed import fault_schedule as fs
 from anyscale_testbed.soak_invariants import (CensusSample, InjectedFault, fixed_node_violations,
-                                              instance_violations, judge_faults)
+                                              instance_violations, judge_faults,
+                                              publisher_violations)
 from anyscale_testbed.soak_run import soak_model
 from anyscale_testbed.testbed_record import TestbedRecord
 
@@ -74,6 +75,10 @@ def test_nodes_that_may_not_move_never_moved(soak):
 
 def test_never_two_instances_or_one_misplaced_once_a_lease_ran_out(soak):
     assert instance_violations(soak["census"], soak["rec"], soak["model"]) == []
+
+
+def test_the_master_never_lists_a_misplaced_publisher_once_a_lease_ran_out(soak):
+    assert publisher_violations(soak["rec"], soak["model"]) == []
 
 
 @pytest.mark.parametrize("kind", [k for k in fs.KINDS if k != fs.RESTART_ROSCORE])

@@ -9,7 +9,7 @@ import pytest
 from anyscale_testbed import fault_schedule as fs
 from anyscale_testbed.soak_invariants import (
     CensusSample, InjectedFault, ResourceSample, SoakModel, fixed_node_violations, growth,
-    judge_faults, process_leak)
+    judge_faults, process_leak, unchecked)
 from anyscale_testbed.soak_report import (format_markdown, format_table, kind_rows, verdict_ok,
                                           write_csv)
 from anyscale_testbed.testbed_record import EventRecord, TestbedRecord
@@ -116,6 +116,37 @@ def test_an_output_silent_longer_than_its_tolerance_is_charged_to_the_fault_befo
     assert outcomes[1].worst_silence == ("/amcl_pose", pytest.approx(3.6), 2.0)
     row = [r for r in kind_rows(outcomes) if r.kind == fs.SEGV_NODE][0]
     assert (row.faults, row.violations) == (2, 1)
+
+
+def with_critical_odom(rec, silent=()):
+    """The record with /odom, a critical connection's topic (freq_min 5 Hz), at 10 Hz except
+    in the `silent` spans, as a monitor with ~record_critical records it."""
+    rec.critical_freq_min = {"/odom": 5.0}
+    rec.receipts["/odom"] = [t for t in (i * 0.1 for i in range(int(END / 0.1)))
+                             if not any(a <= t < b for a, b in silent)]
+    return rec
+
+
+def test_a_critical_topic_silent_for_more_than_a_period_at_its_freq_min_is_a_violation():
+    # 5 Hz minimum: a period of 0.2 s, and 0.1 s for the CPU quota's period on top.
+    faults = [fault(fs.SEGV_NODE, 20.0, target="amcl"), fault(fs.LINK_FLAP, 50.0, hold=2.0)]
+    outcomes = judge_faults(faults, census(), with_critical_odom(record(), [(50.05, 50.5)]),
+                            MODEL, END)
+    assert [len(o.violations) for o in outcomes] == [0, 1]
+    assert outcomes[1].violations[0].startswith("/odom (critical, Δ 0) silent 0.50 s > 0.30 s")
+    # A message late by less than the quota's period is within its minimum rate.
+    quiet = judge_faults(faults, census(), with_critical_odom(record(), [(50.05, 50.15)]),
+                         MODEL, END)
+    assert [o.violations for o in quiet] == [[], []]
+
+
+def test_a_record_without_the_critical_topics_says_their_check_was_not_made():
+    assert unchecked(with_critical_odom(record())) == []
+    [missing] = unchecked(record())
+    assert "critical connections' Δ 0" in missing
+    table = format_table([], [], [], [missing])
+    assert "NOT CHECKED the critical connections' Δ 0" in table
+    assert table.splitlines()[-1].endswith("1 NOT CHECKED")
 
 
 def test_a_silence_before_the_first_fault_is_the_start_ups_not_a_faults():

@@ -232,14 +232,15 @@ def normaliser_state(normaliser: CpuNormaliser) -> str:
 
 def launch_demo(session: TestbedSession, bed, args, model: str, start, goals, record: str,
                 run_dir: str, link: str, master_running: bool = False, respawn: bool = False,
-                echo=None):
+                echo=None, record_critical: bool = False):
     """The demo's three launches on the bed: the world on the robot's side outside its CPU
     quota (it brings up the master unless `master_running`), robot.launch and laptop.launch.
     `args` are parse_args' (world, schedule, seed, duration, rviz, allocator, hysteresis,
     hold_after_loss, cold_start); `respawn`: roslaunch starts the agents and the decision node
     again when they end (the fault soak); `echo` gets each line of the world launch (default:
-    the monitor's lines and errors to the console). Returns the world launch's process: the
-    run ends with it."""
+    the monitor's lines and errors to the console); `record_critical`: the monitor records the
+    critical connections' topics too. Returns the world launch's process: the run ends with
+    it."""
     x, y, yaw = start
     warm = str(not args.cold_start).lower()
     world = session.roslaunch(
@@ -249,7 +250,8 @@ def launch_demo(session: TestbedSession, bed, args, model: str, start, goals, re
             f"schedule:={json.dumps(yaml.safe_load(args.schedule))}",
             f"seed:={args.seed}",
             f"record_path:={record}", f"results_dir:={os.path.join(run_dir, 'nav')}",
-            f"duration_s:={args.duration}", f"rviz:={str(args.rviz).lower()}"],
+            f"duration_s:={args.duration}", f"rviz:={str(args.rviz).lower()}",
+            f"record_critical:={str(record_critical).lower()}"],
         cpu_quota=False, wait_for_master=master_running, echo=echo or echo_monitor_lines)
     # The world launch runs the simulator and the recorder outside the robot's quota.
     session.roslaunch("robot", "robot", [

@@ -16,7 +16,8 @@ The invariants (issue 15):
 - nodes that may not move (critical or pinned) never leave the master scale: not in the
   mapping, not in an event, not as a process elsewhere;
 - every connection's tolerance Δ: an output silent longer than Δ, charged to the fault in
-  whose window its silence began;
+  whose window its silence began; a critical connection's (Δ 0) topic silent for longer than
+  a period at its freq_min (plus CRITICAL_SLACK_S), likewise;
 - the fault is recovered from before the next one: every supervisor (both agents, the
   decision node, the master) runs once, every node runs once where the mapping places it,
   every output has spoken since the fault ended, and the master lists a publisher for it;
@@ -27,7 +28,8 @@ import statistics
 from typing import Dict, List, Optional, Sequence, Set, Tuple
 
 from .fault_schedule import Fault
-from .testbed_record import TestbedRecord, handover_windows, mapping_at, tolerance_violations
+from .testbed_record import (TestbedRecord, Violation, handover_windows, mapping_at, record_end,
+                             silence_cause, silences_longer_than, tolerance_violations)
 
 # An instance cut off from the robot runs until its lease ends; its agent checks leases about
 # once a second and the census samples twice a second: this long on top of the lease.
@@ -35,6 +37,12 @@ LEASE_GRACE_S = 2.0
 # A silence that began this long before a fault is the fault's (its last message came just
 # before the fault struck): one period of AR's 1 Hz minimum.
 FAULT_LEAD_S = 1.0
+# A critical connection (Δ 0) may never run below its freq_min: its topic silent for longer
+# than one period at freq_min is a violation, and on top of that period one period of the
+# robot's CPU quota (the cgroup's cfs_period_us, 100 ms on the test bed): a group at its quota
+# is held back that long at most, so a message due then comes that much late while the rate
+# is not below its minimum.
+CRITICAL_SLACK_S = 0.1
 # Growth: a process sampled for at least MIN_SPAN_S after its first WARMUP_S (imports,
 # connections being made) is judged on the median of its last third against its first third.
 WARMUP_S = 20.0
@@ -132,9 +140,37 @@ def judge_faults(faults: Sequence[InjectedFault], census: Sequence[CensusSample]
         _charge(judged, v.start_t,
                 f"{v.topic} silent {v.silence_s:.2f} s > Δ {v.tolerance_s:g} s from "
                 f"t={v.start_t:.1f} s")
+    for v in critical_violations(rec):
+        _charge(judged, v.start_t,
+                f"{v.topic} (critical, Δ 0) silent {v.silence_s:.2f} s > {v.tolerance_s:.2f} s "
+                f"(a period at its freq_min {rec.critical_freq_min[v.topic]:g} Hz + "
+                f"{CRITICAL_SLACK_S:g} s) from t={v.start_t:.1f} s")
     for o in judged:
         o.worst_silence = worst_silence(rec, o.injected.t - FAULT_LEAD_S, o.window_end)
     return outcomes
+
+
+def critical_violations(rec: TestbedRecord) -> List[Violation]:
+    """Every silence of a critical connection's topic longer than a period at its freq_min
+    plus CRITICAL_SLACK_S (their Violation's tolerance_s is that limit). testbed_record's
+    tolerance_violations leaves these out: an evaluation run records no critical topic."""
+    end = record_end(rec)
+    found = []
+    for topic, freq_min in sorted(rec.critical_freq_min.items()):
+        limit = 1.0 / freq_min + CRITICAL_SLACK_S
+        for a, b in silences_longer_than(rec.receipts.get(topic, []), limit, end):
+            found.append(Violation(topic, a, b, b - a, limit, silence_cause(rec, set(), a, b)))
+    return found
+
+
+def unchecked(rec: TestbedRecord) -> List[str]:
+    """What the record lets no invariant check, in words: the soak says so rather than pass
+    it by."""
+    if not rec.critical_freq_min:
+        return ["the critical connections' Δ 0: the record has no receipts of their topics "
+                "(recorded by a monitor with ~record_critical, as bench_fault_soak.py starts "
+                "it)"]
+    return []
 
 
 def _charge(outcomes: Sequence[FaultOutcome], t: float, text: str):

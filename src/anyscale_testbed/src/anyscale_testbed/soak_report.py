@@ -60,11 +60,12 @@ def _seconds(v: float) -> str:
 
 
 def total_line(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
-               growths: Sequence[Growth]) -> str:
+               growths: Sequence[Growth], unchecked: Sequence[str] = ()) -> str:
     violations = sum(len(o.violations) for o in outcomes)
     grew = [g for g in growths if g.grew]
     return (f"total: {len(outcomes)} faults, {violations} violations, {len(leaks)} leaks, "
-            f"{len(grew)} processes grew")
+            f"{len(grew)} processes grew" + (f", {len(unchecked)} NOT CHECKED" if unchecked
+                                             else ""))
 
 
 def verdict_ok(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
@@ -75,9 +76,10 @@ def verdict_ok(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
 
 
 def detail_lines(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
-                 growths: Sequence[Growth]) -> List[str]:
+                 growths: Sequence[Growth], unchecked: Sequence[str] = ()) -> List[str]:
     """Below the table: faults not injected, each violation with its fault, the leaks, the
-    growth of each process judged."""
+    growth of each process judged, and what could not be checked (named, so that a soak never
+    passes an invariant by without saying so)."""
     lines = [f"NOT INJECTED fault {o.index} {o.kind} at t={o.injected.t:.1f} s: "
              f"{o.injected.error}" for o in outcomes if o.injected.error]
     for o in outcomes:
@@ -89,20 +91,20 @@ def detail_lines(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
         state = "GREW " + "; ".join(g.grew) if g.grew else "steady"
         lines.append(f"{g.role} pid {g.pid} over {g.span_s:.0f} s: memory {g.rss_first_mb:.1f}"
                      f" -> {g.rss_last_mb:.1f} MB, fds {g.fds_first:g} -> {g.fds_last:g}: {state}")
-    return lines
+    return lines + [f"NOT CHECKED {x}" for x in unchecked]
 
 
 def format_table(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
-                 growths: Sequence[Growth]) -> str:
+                 growths: Sequence[Growth], unchecked: Sequence[str] = ()) -> str:
     table = [HEADER] + [_cells(r) for r in kind_rows(outcomes)]
     widths = [max(len(line[i]) for line in table) for i in range(len(HEADER))]
     lines = ["  ".join(c.ljust(w) for c, w in zip(line, widths)).rstrip() for line in table]
-    return "\n".join(lines + detail_lines(outcomes, leaks, growths)
-                     + [total_line(outcomes, leaks, growths)])
+    return "\n".join(lines + detail_lines(outcomes, leaks, growths, unchecked)
+                     + [total_line(outcomes, leaks, growths, unchecked)])
 
 
 def format_markdown(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
-                    growths: Sequence[Growth], title: str) -> str:
+                    growths: Sequence[Growth], title: str, unchecked: Sequence[str] = ()) -> str:
     lines = [f"# {title}", "", "| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
     lines += ["| " + " | ".join(_cells(r)) + " |" for r in kind_rows(outcomes)]
     lines += ["", "## Faults", "", "| # | t [s] | kind | what | recovery | violations |",
@@ -114,8 +116,8 @@ def format_markdown(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
                      f"{'not injected: ' + o.injected.error if o.injected.error else _seconds(o.recovery_s)}"
                      f" | {len(o.violations)} |")
     lines += ["", "## Findings", ""]
-    lines += [f"- {x}" for x in detail_lines(outcomes, leaks, growths)] or ["none"]
-    lines += ["", total_line(outcomes, leaks, growths), ""]
+    lines += [f"- {x}" for x in detail_lines(outcomes, leaks, growths, unchecked)] or ["none"]
+    lines += ["", total_line(outcomes, leaks, growths, unchecked), ""]
     return "\n".join(lines)
 
 

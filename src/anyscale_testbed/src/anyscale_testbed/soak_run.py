@@ -31,7 +31,7 @@ from .link_shaper import apply_setting
 from .proc_census import processes_with_master
 from .soak_bed import Injector, Sampler, describe_state
 from .soak_invariants import (CensusSample, InjectedFault, ResourceSample, SoakModel, growth,
-                              judge_faults, process_leak)
+                              judge_faults, process_leak, unchecked)
 from .soak_report import format_markdown, format_table, verdict_ok, write_csv
 from .testbed_record import TestbedRecord
 from .testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
@@ -187,7 +187,7 @@ def main(root: str, argv=None) -> int:
             injector.start_roscore()
             world = launch_demo(session, bed, demo, model_path, start, goals, record_path,
                                 run_dir, "unshaped", master_running=True, respawn=True,
-                                echo=quiet_world)
+                                echo=quiet_world, record_critical=True)
             sampler.start()
             try:
                 run_schedule(schedule, sampler, injector, world, injected)
@@ -278,13 +278,14 @@ def judge(out: str, data: dict, rec: TestbedRecord, soak: SoakModel) -> int:
     outcomes = judge_faults(faults, census, rec, soak, end_t)
     left = list(data["leaks"]) + process_leak(census, rec, soak)
     growths = growth(resources)
+    missed = unchecked(rec)
     title = (f"Fault soak: seed {data['seed']}, {data['minutes']:g} min, {len(faults)} of "
              f"{len(data['schedule'])} faults injected, {WORLD}")
     say(title)
-    say(format_table(outcomes, left, growths))
+    say(format_table(outcomes, left, growths, missed))
     write_csv(os.path.join(out, "fault_soak.csv"), outcomes)
     with open(os.path.join(out, "fault_soak.md"), "w") as f:
-        f.write(format_markdown(outcomes, left, growths, title))
+        f.write(format_markdown(outcomes, left, growths, title, missed))
     say(f"bench_fault_soak: {out}/fault_soak.csv, fault_soak.md, soak.json")
     return 0 if verdict_ok(outcomes, left, growths) else 1
 

@@ -111,11 +111,19 @@ class TestbedMonitor:
                 self.tolerances[c.topic] = max(self.tolerances.get(c.topic, 0.0), c.tolerance)
         # In the record too: its violations can be read, and recomputed, without the model.
         self.rec.outputs, self.rec.tolerances = dict(self.outputs), dict(self.tolerances)
+        # The critical connections' topics as well, on request (the fault soak checks that they
+        # never run below freq_min): off by default, as every subscriber adds to the work of
+        # the publishers on the robot, whose CPU the test bed's calibration measured without.
+        if rospy.get_param("~record_critical", False):
+            for c in self.model.connections:
+                if c.tolerance == 0:
+                    self.rec.critical_freq_min[c.topic] = max(
+                        self.rec.critical_freq_min.get(c.topic, 0.0), float(c.freq_min))
         self.node_names = [n.name for n in self.model.nodes]
         self.master = rosgraph.Master(rospy.get_name())
         self.pose_topic = rospy.get_param("~pose_topic", "/amcl_pose")
         self.markers_topic = rospy.get_param("~markers_topic", "/ar_markers")
-        for topic in sorted(set(self.outputs.values())
+        for topic in sorted(set(self.outputs.values()) | set(self.rec.critical_freq_min)
                             | {self.pose_topic, self.markers_topic} - {""}):
             self.rec.receipts[topic] = []
             self.rec.senders[topic] = []

@@ -17,7 +17,7 @@ import pytest
 from anyscale_testbed import fault_schedule as fs
 from anyscale_testbed.soak_invariants import (CensusSample, InjectedFault, fixed_node_violations,
                                               instance_violations, judge_faults,
-                                              publisher_violations)
+                                              publisher_violations, unchecked)
 from anyscale_testbed.soak_run import soak_model
 from anyscale_testbed.testbed_record import TestbedRecord
 
@@ -63,6 +63,10 @@ def test_the_table_and_its_copies_are_written(soak):
     rows = [r for r in csv.reader(open(soak["out"] / "fault_soak.csv")) if r and r[0] == "kind"]
     assert [r[1] for r in rows] == list(fs.KINDS)
     assert (soak["out"] / "fault_soak.md").read_text().startswith("# Fault soak")
+
+
+def test_every_invariant_could_be_checked(soak):
+    assert unchecked(soak["rec"]) == []
 
 
 def test_nothing_is_left_behind(soak):

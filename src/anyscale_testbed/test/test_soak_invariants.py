@@ -9,7 +9,7 @@ import pytest
 from anyscale_testbed import fault_schedule as fs
 from anyscale_testbed.soak_invariants import (
     CensusSample, InjectedFault, ResourceSample, SoakModel, fixed_node_violations, growth,
-    judge_faults, process_leak, unchecked)
+    judge_faults, process_leak, unchecked, unjudged_growth)
 from anyscale_testbed.soak_report import (format_markdown, format_table, kind_rows, verdict_ok,
                                           write_csv)
 from anyscale_testbed.testbed_record import EventRecord, TestbedRecord
@@ -199,12 +199,26 @@ def series(role, pid, rss, fds, span=300.0, step=5.0):
 def test_growth_of_memory_and_of_descriptors_is_found_and_steady_use_is_not():
     steady = series("decision", 10, lambda t: 60.0 + (t % 10) * 0.1, lambda t: 30)
     leaking = series("agent_robot", 11, lambda t: 20.0 + t * 0.05, lambda t: 12 + int(t / 20))
-    short = series("agent_laptop", 12, lambda t: 20.0 + t, lambda t: 10 + t, span=40.0)
+    short = series("agent_laptop", 12, lambda t: 20.0 + t, lambda t: 10 + t, span=30.0)
     found = {g.role: g for g in growth(steady + leaking + short)}
     assert found["decision"].grew == []
     assert [w.split()[0] for w in found["agent_robot"].grew] == ["memory", "file"]
     assert "agent_laptop" not in found           # too short to judge
     assert "GREW" in format_table([], [], list(found.values()))
+
+
+def test_a_process_respawned_late_is_judged_over_its_own_life_and_a_brief_one_is_named():
+    # An agent killed and started again 55 s before the soak ended: 35 s after its warm-up,
+    # at 2 Hz, leaking 0.5 MB/s and a descriptor every 3 s.
+    late = series("agent_laptop", 21, lambda t: 18.0 + 0.5 * t, lambda t: 11 + int(t / 3),
+                  span=55.0, step=0.5)
+    brief = series("decision", 22, lambda t: 60.0, lambda t: 30, span=30.0, step=0.5)
+    [found] = growth(late + brief)
+    assert (found.pid, [w.split()[0] for w in found.grew]) == (21, ["memory", "file"])
+    [named] = unjudged_growth(late + brief)
+    assert named == "growth of decision pid 22: sampled 10 s after its 20 s warm-up, judged " \
+                    "from 30 s"
+    assert "NOT CHECKED growth of decision pid 22" in format_table([], [], [found], [named])
 
 
 def test_more_processes_at_the_end_with_the_same_placement_is_a_leak():

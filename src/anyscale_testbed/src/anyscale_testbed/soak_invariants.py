@@ -45,8 +45,11 @@ FAULT_LEAD_S = 1.0
 CRITICAL_SLACK_S = 0.1
 # Growth: a process sampled for at least MIN_SPAN_S after its first WARMUP_S (imports,
 # connections being made) is judged on the median of its last third against its first third.
+# 30 s is 60 samples, 20 in a third, at the census's 2 Hz: enough for a median, and short
+# enough that an agent or decision node respawned mid-soak, and the CI soak's processes, are
+# judged too. A process sampled for less is named as not judged (unjudged_growth).
 WARMUP_S = 20.0
-MIN_SPAN_S = 60.0
+MIN_SPAN_S = 30.0
 RSS_GROWTH_MB = 5.0
 RSS_GROWTH_SHARE = 0.10
 FD_GROWTH = 5
@@ -393,14 +396,9 @@ def process_leak(census: Sequence[CensusSample], rec: TestbedRecord,
 def growth(samples: Sequence[ResourceSample]) -> List[Growth]:
     """For each process (role and pid) sampled long enough: its memory and file descriptors,
     first third against last third (medians) after its warm-up, and whether they grew."""
-    by_process: Dict[Tuple[str, int], List[ResourceSample]] = {}
-    for s in samples:
-        by_process.setdefault((s.role, s.pid), []).append(s)
     out = []
-    for (role, pid), series in sorted(by_process.items()):
-        series = sorted(series, key=lambda s: s.t)
-        judged = [s for s in series if s.t >= series[0].t + WARMUP_S]
-        if len(judged) < 6 or judged[-1].t - judged[0].t < MIN_SPAN_S:
+    for (role, pid), judged in sorted(_after_warmup(samples).items()):
+        if _span(judged) < MIN_SPAN_S:
             continue
         third = len(judged) // 3
         first, last = judged[:third], judged[-third:]
@@ -413,5 +411,29 @@ def growth(samples: Sequence[ResourceSample]) -> List[Growth]:
             grew.append(f"memory {rss0:.1f} -> {rss1:.1f} MB")
         if fd1 - fd0 >= FD_GROWTH:
             grew.append(f"file descriptors {fd0:g} -> {fd1:g}")
-        out.append(Growth(role, pid, judged[-1].t - judged[0].t, rss0, rss1, fd0, fd1, grew))
+        out.append(Growth(role, pid, _span(judged), rss0, rss1, fd0, fd1, grew))
     return out
+
+
+def unjudged_growth(samples: Sequence[ResourceSample]) -> List[str]:
+    """The processes growth() leaves out, in words: sampled too briefly after their warm-up
+    (e.g. killed by the soak soon after their start)."""
+    return [f"growth of {role} pid {pid}: sampled {_span(judged):.0f} s after its "
+            f"{WARMUP_S:g} s warm-up, judged from {MIN_SPAN_S:g} s"
+            for (role, pid), judged in sorted(_after_warmup(samples).items())
+            if _span(judged) < MIN_SPAN_S]
+
+
+def _after_warmup(samples: Sequence[ResourceSample]) -> Dict[Tuple[str, int],
+                                                              List[ResourceSample]]:
+    """(role, pid) -> its samples after its first WARMUP_S, in time order."""
+    by_process: Dict[Tuple[str, int], List[ResourceSample]] = {}
+    for s in sorted(samples, key=lambda s: s.t):
+        by_process.setdefault((s.role, s.pid), []).append(s)
+    return {key: [s for s in series if s.t >= series[0].t + WARMUP_S]
+            for key, series in by_process.items()}
+
+
+def _span(series: Sequence[ResourceSample]) -> float:
+    """The time the samples cover; 0 for fewer than 6 (thirds of 2 make no median)."""
+    return series[-1].t - series[0].t if len(series) >= 6 else 0.0

@@ -31,7 +31,7 @@ from .link_shaper import apply_setting
 from .proc_census import processes_with_master
 from .soak_bed import Injector, Sampler, describe_state
 from .soak_invariants import (CensusSample, InjectedFault, ResourceSample, SoakModel, growth,
-                              judge_faults, process_leak, unchecked)
+                              judge_faults, process_leak, unchecked, unjudged_growth)
 from .soak_report import format_markdown, format_table, verdict_ok, write_csv
 from .testbed_record import TestbedRecord
 from .testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
@@ -278,7 +278,7 @@ def judge(out: str, data: dict, rec: TestbedRecord, soak: SoakModel) -> int:
     outcomes = judge_faults(faults, census, rec, soak, end_t)
     left = list(data["leaks"]) + process_leak(census, rec, soak)
     growths = growth(resources)
-    missed = unchecked(rec)
+    missed = unchecked(rec) + unjudged_growth(resources)
     title = (f"Fault soak: seed {data['seed']}, {data['minutes']:g} min, {len(faults)} of "
              f"{len(data['schedule'])} faults injected, {WORLD}")
     say(title)

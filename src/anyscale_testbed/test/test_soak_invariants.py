@@ -12,7 +12,7 @@ from anyscale_testbed.soak_invariants import (
     judge_faults, process_leak, unchecked, unjudged_growth)
 from anyscale_testbed.soak_report import (format_markdown, format_table, kind_rows, verdict_ok,
                                           write_csv)
-from anyscale_testbed.testbed_record import EventRecord, TestbedRecord
+from anyscale_testbed.testbed_record import EventRecord, ProcessSample, TestbedRecord
 
 NODES = ["amcl", "ekf"]
 MODEL = SoakModel("robot", NODES, {"ekf"},
@@ -96,6 +96,15 @@ def test_a_publisher_the_master_lists_where_the_mapping_does_not_place_it_is_a_v
         "the master listed /amcl of /amcl_pose (not where the mapping places it) for 9.0 s")
     [ok] = judge_faults(kill, census(), record(ghost=[(31.0, 34.0)]), MODEL, END)
     assert ok.violations == []
+
+
+def test_an_instance_paused_at_home_is_listed_by_design_and_no_violation():
+    rec = record(ghost=[(31.0, 41.0)])
+    rec.processes = [ProcessSample(t, True, {"amcl": ["laptop"]},
+                                   ["/amcl"] if 31.0 <= t < 41.0 else [])
+                     for t, _ in rec.master_publishers]
+    [o] = judge_faults([fault(fs.KILL_LAPTOP_AGENT, 30.0)], census(), rec, MODEL, END)
+    assert o.violations == []
 
 
 def test_a_publisher_listed_twice_during_a_planned_moves_overlap_is_no_violation():

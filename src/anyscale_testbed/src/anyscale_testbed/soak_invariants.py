@@ -289,15 +289,18 @@ def publisher_violations(rec: TestbedRecord, model: SoakModel) -> List[Tuple[flo
     the mapping did not place it on as a publisher of a recorded topic, for longer than a
     lease plus LEASE_GRACE_S, outside a planned move's overlap. The /proc census cannot see
     this: a registration outlives its process (a partition, a kill -9) until the decision
-    node removes it, and subscribers keep connecting to it for as long as it is listed."""
+    node removes it, and subscribers keep connecting to it for as long as it is listed. An
+    instance paused at home (launch.pause_at_home) stays registered by design and publishes
+    nothing: the monitor's process sample of the same moment names it, and it is left out."""
     instance_of = {name: key for key, name in model.instance_names.items()}
     windows = handover_windows(rec.events)
+    paused = {p.t: set(p.paused) for p in rec.processes}
     polls = [t for t, _ in rec.master_publishers]
     marks: Dict[str, List[Tuple[float, str]]] = {}
     for t, publishers in rec.master_publishers:
         mapping = mapping_at(rec, t)
         for topic, names in sorted(publishers.items()):
-            for name in names:
+            for name in set(names) - paused.get(t, set()):
                 node, scale = instance_of.get(name, (None, None))
                 if node is not None and scale != mapping.get(node, model.master) and \
                         not any(a <= t <= b for a, b in windows.get(node, [])):

@@ -3,9 +3,11 @@
 bed with AnyScale deciding, while a seeded schedule injects faults one at a time: link flaps of
 1-5 s and bandwidth steps, kill -9 of the laptop's and of the robot's agent, kill -9 of the
 decision node (roslaunch restarts it), SIGSTOP/SIGCONT of the laptop's agent for 1-4 s, SIGSEGV
-of a managed node, and a restart of roscore. After each fault it checks the invariants (one
-instance of each node, none on a scale the mapping does not place it on once leases ran out,
-critical and pinned nodes never moved, every Δ kept; at the end nothing left behind and no
+of a managed node, and a restart of roscore (robot.launch's master keeper gives the new master
+the parameters and registrations the old one held). After each fault it checks the invariants
+(one instance of each node, none on a scale the mapping does not place it on once leases ran
+out, in /proc and in the master's lists, critical and pinned nodes never moved, every Δ kept,
+critical topics included; at the end nothing left behind and no
 growth of the agents' and the decision node's memory and file descriptors) and prints a table
 per fault kind (count, worst recovery, violations); CSV and Markdown copies and the raw samples
 go to --out. The logic is anyscale_testbed.soak_run (orchestration), fault_schedule and

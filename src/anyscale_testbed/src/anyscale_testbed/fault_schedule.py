@@ -83,8 +83,9 @@ def make_schedule(seed: int, duration_s: float, segv_targets: Sequence[str],
 
     Every kind but the roscore restart comes once first, in a seeded order, so that even a
     short soak meets each; then kinds are drawn by `weights` while the time lasts. The
-    `roscore_restarts` come last: ROS 1 keeps the parameter server in the master, so what a
-    restarted master lacks would be charged to every later fault."""
+    `roscore_restarts` come last: ROS 1 keeps the parameters and registrations in the master
+    only, and whatever a restarted master did not get back (robot.launch's master keeper gives
+    it what the old one held) would be charged to every later fault."""
     if not duration_s > 0:
         raise ScheduleError(f"duration: expected > 0 s, got {duration_s}")
     if not segv_targets:

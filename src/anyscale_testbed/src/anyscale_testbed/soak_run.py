@@ -4,11 +4,13 @@ small loop, on the two-scale test bed, with AnyScale deciding, while a seeded sc
 (soak_invariants.py), the table per fault kind and its CSV and Markdown copies (soak_report.py).
 
 The master runs as a roscore of its own (so that it can be killed and started again without
-ending the world launch), and roslaunch restarts the agents and the decision node when they
+ending the world launch; robot.launch's master keeper gives the new one what the old one
+held), and roslaunch restarts the agents and the decision node when they
 are killed (respawn:=true), as it would for a user who asks it to. The link is set through the
 link shaper's own functions (link_shaper.apply_setting), at the moment of each fault. While it
-runs, a thread samples /proc twice a second (soak_bed.Sampler). The monitor node records the outputs, the mapping, the events
-and the master's publishers as in every test-bed run."""
+runs, a thread samples /proc twice a second (soak_bed.Sampler). The monitor node records the
+outputs, the mapping, the events and the master's publishers as in every test-bed run, and the
+critical connections' topics too (record_critical)."""
 import datetime
 import json
 import math

@@ -1,6 +1,6 @@
 // gtest: a restarted supervisor adopts the nodes its predecessor left running (state file,
-// pid + start time + command line), watches them without being their parent, and stops them;
-// the state file is written when its list changes, outside the supervisor's lock.
+// pid + start time + command line), watches them without being their parent, and stops them.
+// When the state file is written: test_supervisor_state_file.cpp.
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -381,89 +381,4 @@ TEST(SupervisorAdoptFile, NodesOfAKilledAgentLiveOnAndAreAdopted)
   EXPECT_EQ(s.info("/survivor")->exit_signal, SIGINT);
   if (!processGone(pid))
     ::kill(pid, SIGKILL);  // never leave it behind, even when an assertion failed
-}
-
-TEST(SupervisorStateFile, LeaseRenewalsAreWrittenOnlyWhereNodesOutliveTheAgent)
-{
-  for (const bool outlive : { false, true })
-  {
-    SCOPED_TRACE(outlive ? "nodes outlive the agent" : "nodes die with the agent");
-    TempDir dir;
-    const std::string path = dir.path() + "/nodes.yaml";
-    SupervisorOptions o;
-    if (outlive)
-      o.parent_death_signal = 0;
-    Supervisor s(o);
-    s.adopt(path);
-    std::string err;
-    ASSERT_GT(s.start("/leased", { "/bin/sleep", "30" }, tempLog("leased"), &err), 0) << err;
-    s.markRunning("/leased");
-    const std::string untouched = "not written since\n";
-    std::ofstream(path) << untouched;
-    s.setLeaseEnds({ { "/leased", 1234.5 } });
-    if (outlive)
-      EXPECT_EQ(readNodeStateFile(path)->nodes.at(0).lease_end_s, 1234.5);
-    else
-      EXPECT_EQ(supervisor_test::readFile(path), untouched) << "a successor has no lease to enforce";
-    // A change a successor needs is written, with the lease end only where it enforces one.
-    ASSERT_TRUE(s.pause("/leased", &err)) << err;
-    const NodeStateEntry e = readNodeStateFile(path)->nodes.at(0);
-    EXPECT_EQ(e.state, "paused");
-    EXPECT_EQ(e.lease_end_s, outlive ? 1234.5 : 0.0);
-    ASSERT_TRUE(s.stop("/leased"));
-    ASSERT_TRUE(s.waitGone("/leased", 10.0));
-    EXPECT_TRUE(readNodeStateFile(path)->nodes.empty());
-  }
-}
-
-TEST(SupervisorStateFile, QueriesDoNotWaitForTheFileToBeWritten)
-{
-  TempDir dir;
-  const std::string path = dir.path() + "/nodes.yaml";
-  Supervisor s;
-  s.adopt(path);
-  // A disk that does not answer: the next write blocks in open(2) of its temporary file, a
-  // FIFO, until the FIFO has a reader.
-  const std::string tmp = path + ".tmp";
-  ASSERT_EQ(::mkfifo(tmp.c_str(), 0600), 0) << std::strerror(errno);
-  std::atomic<bool> started{ false };
-  std::thread starter([&] {
-    std::string err;
-    s.start("/slow_disk", { "/bin/sleep", "30" }, tempLog("slow_disk"), &err);
-    started = true;
-  });
-  auto listed = std::async(std::launch::async, [&] {
-    const auto end = Clock::now() + std::chrono::seconds(5);
-    for (; Clock::now() < end; std::this_thread::sleep_for(std::chrono::milliseconds(5)))
-      if (const auto info = s.info("/slow_disk"); info && info->pid > 0)
-        return true;
-    return false;
-  });
-  const bool answered = listed.wait_for(std::chrono::seconds(6)) == std::future_status::ready && listed.get();
-  EXPECT_TRUE(answered) << "a query waited for the state file's write";
-  EXPECT_FALSE(started) << "the start returns once its write is done";
-
-  // The disk answers: the write goes through, with the node in it.
-  const int fifo = ::open(tmp.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
-  ASSERT_GE(fifo, 0) << std::strerror(errno);
-  std::string text;
-  for (const auto end = Clock::now() + std::chrono::seconds(10); Clock::now() < end;)
-  {
-    char buf[4096];
-    const ssize_t n = ::read(fifo, buf, sizeof buf);
-    if (n > 0)
-      text.append(buf, std::size_t(n));
-    else if (n == 0 && !text.empty())
-      break;  // the writer closed it
-    else
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));  // not opened or not written yet
-  }
-  starter.join();
-  ::close(fifo);
-  EXPECT_TRUE(started);
-  EXPECT_EQ(parseNodeState(text, "the FIFO").nodes.at(0).name, "/slow_disk");
-  // The FIFO was renamed to the file's name; the next write replaces it with a file again.
-  ASSERT_TRUE(s.stop("/slow_disk"));
-  ASSERT_TRUE(s.waitGone("/slow_disk", 10.0));
-  EXPECT_TRUE(readNodeStateFile(path)->nodes.empty());
 }

@@ -10,6 +10,8 @@ import rospy
 from anyscale_msgs.srv import (ListNodes, RenewLeases, SetWatchedTopics, StartNode,
                                StopNode)
 
+from . import xmlrpc_calls
+
 
 def call_with_timeout(fn: Callable, timeout_s: float):
     """fn() or TimeoutError after timeout_s. rospy service calls have no timeout of their own
@@ -82,24 +84,12 @@ class AgentClient:
         return self.call(scale, "set_watched_topics", topics=list(topics))
 
 
-class _TimeoutTransport(xmlrpc.client.Transport):
-    def __init__(self, timeout_s):
-        super().__init__()
-        self._timeout_s = timeout_s
-
-    def make_connection(self, host):
-        conn = super().make_connection(host)
-        conn.timeout = self._timeout_s
-        return conn
-
-
 def registered_pid(node: str, caller_id: str, timeout_s: float = 1.0) -> Optional[int]:
     """pid of the process the master lists under `node` (asked over the node's own XML-RPC,
     with a timeout: it may sit behind a partitioned link); None if unknown."""
     try:
         uri = rosgraph.Master(caller_id).lookupNode(node)
-        code, _, pid = xmlrpc.client.ServerProxy(
-            uri, transport=_TimeoutTransport(timeout_s)).getPid(caller_id)
+        code, _, pid = xmlrpc_calls.proxy(uri, timeout_s).getPid(caller_id)
     except (rosgraph.MasterError, OSError, xmlrpc.client.Error):
         return None
     return pid if code == 1 else None

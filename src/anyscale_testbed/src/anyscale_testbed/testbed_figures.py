@@ -163,7 +163,7 @@ def move_figures(rec: TestbedRecord, outputs: Dict[str, str]) -> List[MoveFigure
     A silence belongs to one move at most: the first one whose window it overlaps and that was
     decided no more than MOVE_LEAD_S after it began. A later move in the same silence reports
     since when the output was silent instead of counting the silence a second time."""
-    end = rec.finished_t if rec.finished_t is not None else _last_time(rec)
+    end = record_end(rec)
     owned: Dict[str, set] = {}          # topic -> starts of the silences a move owns
     figures = {}
     moves = [e for e in rec.events if e.kind in ("migrate", "migrate_back") and e.node in outputs]
@@ -194,7 +194,7 @@ def tolerance_violations(rec: TestbedRecord, outputs: Optional[Dict[str, str]] =
     record's own outputs and tolerances unless given), with what happened around it."""
     outputs = rec.outputs if outputs is None else outputs
     tolerances = rec.tolerances if tolerances is None else tolerances
-    end = rec.finished_t if rec.finished_t is not None else _last_time(rec)
+    end = record_end(rec)
     found = []
     for topic, tol in sorted(tolerances.items()):
         if tol <= 0:
@@ -290,6 +290,11 @@ def format_summary(rec: TestbedRecord, outputs: Dict[str, str],
 
 def _seconds(v: float) -> str:
     return f"{v:.2f} s" if math.isfinite(v) else "-"
+
+
+def record_end(rec: TestbedRecord) -> float:
+    """When the run ended: the monitor's finish, else its last sample (a killed run)."""
+    return rec.finished_t if rec.finished_t is not None else _last_time(rec)
 
 
 def _last_time(rec: TestbedRecord) -> float:

@@ -61,6 +61,9 @@ class TestbedRecord:
     finished_t: Optional[float] = None
     outputs: Dict[str, str] = field(default_factory=dict)         # node -> its output topic
     tolerances: Dict[str, float] = field(default_factory=dict)    # output topic -> Δ in s
+    # The topics of critical connections (Δ 0) -> the highest freq_min among them, when the
+    # monitor records their receipts too (~record_critical, the fault soak); else empty.
+    critical_freq_min: Dict[str, float] = field(default_factory=dict)
     # silences longer than their tolerance: testbed_figures.tolerance_violations
     violations: List[Violation] = field(default_factory=list)
     # Ground truth's heading at truth's samples (t, yaw rad), for the mean |omega| of the

@@ -149,6 +149,18 @@ def test_a_critical_topic_silent_for_more_than_a_period_at_its_freq_min_is_a_vio
     assert [o.violations for o in quiet] == [[], []]
 
 
+def test_the_sensors_stopping_together_at_the_end_is_no_critical_silence():
+    from anyscale_testbed.soak_invariants import critical_violations
+    rec = with_critical_odom(record(), [(END - 0.7, END)])     # the teardown's tail
+    rec.critical_freq_min["/scan"] = 5.0
+    rec.receipts["/scan"] = list(rec.receipts["/odom"])
+    rec.finished_t = END
+    assert critical_violations(rec) == []
+    # One that stops alone while the others go on is counted up to their last message.
+    rec.receipts["/scan"] = [t for t in rec.receipts["/scan"] if t < END - 2.0]
+    assert [(v.topic, round(v.silence_s, 1)) for v in critical_violations(rec)] == [("/scan", 1.3)]
+
+
 def test_a_record_without_the_critical_topics_says_their_check_was_not_made():
     assert unchecked(with_critical_odom(record())) == []
     [missing] = unchecked(record())

@@ -64,11 +64,18 @@ class FakeRosMaster:
         return (1, "", self.services[service][1]) if service in self.services \
             else (-1, "unknown", "")
 
+    @staticmethod
+    def _add(table, topic, caller, uri):
+        # As rosmaster's Registrations.register: a registration made twice is held once.
+        regs = table.setdefault(topic, [])
+        if (caller, uri) not in regs:
+            regs.append((caller, uri))
+
     def registerPublisher(self, caller, topic, type_, uri):
         if topic in self.refuse:
             return -1, f"refused {topic}", 0
         self._node(caller, uri)
-        self.publishers.setdefault(topic, []).append((caller, uri))
+        self._add(self.publishers, topic, caller, uri)
         self.types.setdefault(topic, type_)
         uris = [u for _, u in self.publishers[topic]]
         for _, sub in self.subscribers.get(topic, []):
@@ -77,7 +84,7 @@ class FakeRosMaster:
 
     def registerSubscriber(self, caller, topic, type_, uri):
         self._node(caller, uri)
-        self.subscribers.setdefault(topic, []).append((caller, uri))
+        self._add(self.subscribers, topic, caller, uri)
         self.types.setdefault(topic, type_)
         return 1, "", [u for _, u in self.publishers.get(topic, [])]
 
@@ -111,14 +118,24 @@ class Direct:
     def lookup_nodes(self, names):
         return {n: self.m.lookupNode("/keeper", n)[2] or None for n in names}
 
-    def register_publisher(self, name, topic, type_, uri):
-        return value(self.m.registerPublisher(name, topic, type_, uri))
+    def held_registrations(self):
+        held = {}
+        for kind, table in zip(("pub", "sub", "srv"), value(self.m.getSystemState("/keeper"))):
+            for topic, names in table:
+                for name in names:
+                    held.setdefault(name, set()).add((kind, topic))
+        return held
 
-    def register_subscriber(self, name, topic, type_, uri):
-        return value(self.m.registerSubscriber(name, topic, type_, uri))
-
-    def register_service(self, name, service, service_uri, uri):
-        return value(self.m.registerService(name, service, service_uri, uri))
+    def register(self, calls):
+        """Each (method, caller_id, args) in turn, as one multicall: its value, or the
+        MasterCallError it was refused with."""
+        out = []
+        for method, name, args in calls:
+            try:
+                out.append(value(getattr(self.m, method)(name, *args)))
+            except MasterCallError as e:
+                out.append(e)
+        return out
 
 
 class FakeNode:

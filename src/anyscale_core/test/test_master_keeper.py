@@ -152,3 +152,21 @@ def test_bad_arguments_end_in_one_line(argv, error, capsys):
 def test_the_defaults_are_a_snapshot_a_second():
     args = parse_args([])
     assert (args.period, args.timeout) == (1.0, 0.5)
+
+
+def test_registrations_go_in_one_request_each_as_its_node_and_a_raising_one_fails_alone(bed):
+    class Raising(FakeRosMaster):
+        def registerPublisher(self, caller, topic, type_, uri):
+            if topic == "/bad":
+                raise ValueError("no such type")
+            return super().registerPublisher(caller, topic, type_, uri)
+
+    master = Raising(100, "run-a")
+    client = MasterClient(bed(master).uri, "/keeper", 2.0)
+    replies = client.register([("registerPublisher", "/laser", (SCAN, T_SCAN, "http://r:1/")),
+                               ("registerPublisher", "/relay", ("/bad", T_SCAN, "http://r:2/")),
+                               ("registerSubscriber", "/amcl", (SCAN, T_SCAN, "http://r:3/"))])
+    assert replies[0] == [] and replies[2] == ["http://r:1/"]
+    assert "no such type" in str(replies[1])
+    assert master.nodes == {"/laser": "http://r:1/", "/amcl": "http://r:3/"}
+    assert client.held_registrations() == {"/laser": {("pub", SCAN)}, "/amcl": {("sub", SCAN)}}

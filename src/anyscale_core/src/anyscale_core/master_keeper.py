@@ -13,7 +13,7 @@ import signal
 import sys
 import time
 import xmlrpc.client
-from typing import Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Set, Tuple
 
 import rosgraph
 
@@ -32,7 +32,21 @@ class MasterUnreachable(OSError):
     """The master did not answer (stopped, restarting, out of reach)."""
 
 
+def _reply(results, i: int):
+    try:
+        return results[i]
+    except xmlrpc.client.Fault as fault:     # the master raised: no (code, message, value)
+        return fault
+
+
+def _found(reply):
+    """A lookup's value; None for a name the master does not know."""
+    return None if isinstance(reply, xmlrpc.client.Fault) or reply[0] != 1 else reply[2]
+
+
 def _value(reply, what: str):
+    if isinstance(reply, xmlrpc.client.Fault):
+        raise MasterCallError(f"{what}: {reply.faultString}")
     code, message, value = reply
     if code != 1:
         raise MasterCallError(f"{what}: {message}")
@@ -49,16 +63,18 @@ class MasterClient:
         self.caller_id = caller_id
         self.timeout_s = timeout_s
 
-    def _call(self, calls: Sequence[Tuple[str, tuple]], caller_id: Optional[str] = None):
-        """The replies ((code, message, value) each) of `calls`, (method, args) pairs, made as
-        `caller_id` (the keeper's own by default)."""
+    def _call(self, calls: Sequence[Tuple[str, tuple]], caller_ids: Optional[List[str]] = None):
+        """The replies ((code, message, value) each, or the xmlrpc.client.Fault a call raised)
+        of `calls`, (method, args) pairs, each made as its caller id in `caller_ids` (the
+        keeper's own by default)."""
         multi = xmlrpc.client.MultiCall(xmlrpc_calls.proxy(self.uri, self.timeout_s))
-        for method, args in calls:
-            getattr(multi, method)(caller_id or self.caller_id, *args)
+        for (method, args), caller_id in zip(calls, caller_ids or [self.caller_id] * len(calls)):
+            getattr(multi, method)(caller_id, *args)
         try:
-            return list(multi())
+            results = multi()
         except CALL_ERRORS as e:
             raise MasterUnreachable(f"{type(e).__name__}: {e}") from None
+        return [_reply(results, i) for i in range(len(calls))]
 
     def state(self):
         """(identity, parameters, system state, topic types), from one request."""
@@ -76,7 +92,7 @@ class MasterClient:
                              + [("lookupService", (s,)) for s in services] + [("getPid", ())])
         if _value(replies[-1], "getPid") != pid:
             return None
-        found = [value if code == 1 else None for code, _, value in replies[:-1]]
+        found = [_found(reply) for reply in replies[:-1]]
         return dict(zip(nodes, found[:len(nodes)])), dict(zip(services, found[len(nodes):]))
 
     # --- what master_restore.restore calls ------------------------------------------------
@@ -90,19 +106,31 @@ class MasterClient:
 
     def lookup_nodes(self, names: List[str]) -> Dict[str, Optional[str]]:
         replies = self._call([("lookupNode", (n,)) for n in names]) if names else []
-        return {n: value if code == 1 else None for n, (code, _, value) in zip(names, replies)}
+        return {n: _found(reply) for n, reply in zip(names, replies)}
 
-    def register_publisher(self, name, topic, type_, uri):
-        return _value(self._call([("registerPublisher", (topic, type_, uri))], name)[0],
-                      "registerPublisher")
+    def held_registrations(self) -> Dict[str, Set[Tuple[str, str]]]:
+        held: Dict[str, Set[Tuple[str, str]]] = {}
+        state = _value(self._call([("getSystemState", ())])[0], "getSystemState")
+        for kind, table in zip(("pub", "sub", "srv"), state):
+            for name_, names in table:
+                for node in names:
+                    held.setdefault(node, set()).add((kind, name_))
+        return held
 
-    def register_subscriber(self, name, topic, type_, uri):
-        return _value(self._call([("registerSubscriber", (topic, type_, uri))], name)[0],
-                      "registerSubscriber")
-
-    def register_service(self, name, service, service_uri, uri):
-        return _value(self._call([("registerService", (service, service_uri, uri))], name)[0],
-                      "registerService")
+    def register(self, calls: Sequence[Tuple[str, str, tuple]]) -> list:
+        """(method, caller_id, args) calls in one request: each one's value, or the
+        MasterCallError it was refused with."""
+        if not calls:
+            return []
+        replies = self._call([(method, args) for method, _, args in calls],
+                             [caller_id for _, caller_id, _ in calls])
+        out = []
+        for reply, (method, _, args) in zip(replies, calls):
+            try:
+                out.append(_value(reply, method))
+            except MasterCallError as e:
+                out.append(e)
+        return out
 
 
 class NodeApi:

@@ -23,16 +23,20 @@ unregister at its shutdown matches. In order:
 - the parameters the new master lacks; it keeps its own values (roscore's /rosversion, what
   was set since it started), and /run_id is never written: the new roscore's roslaunch
   checks that /run_id is its own and fails otherwise;
-- each node of the snapshot that the new master does not know yet, and whose URI does not
-  refuse the connection (a refusal: the process is gone). A node it knows registered again
-  by itself (e.g. respawned): registering the old URI under its name would make the master
-  shut the new process down. Its topics as the node reports them (getPublications,
-  getSubscriptions: current, typed); as the snapshot had them if it does not answer (a
-  paused node, one behind a partitioned link);
-- every publisher before any subscriber: each registerPublisher makes the master send the
-  topic's subscribers the publishers it knows so far, and roscpp drops its connection to a
-  publisher missing from that list (Subscription::pubUpdate), so no restored subscriber may
-  be registered while a list is incomplete;
+- each node of the snapshot whose URI does not refuse the connection (a refusal: the process
+  is gone), unless the new master holds its name under another URI: a new process took it
+  (e.g. respawned), and registering the old URI under its name would make the master shut
+  the new process down. Under its own URI the new master may know it already (rospy and
+  roscpp register with whichever master answers: a resumed AMCL subscribes again; or a
+  restore was broken off): what it holds is kept, the rest is added. Its topics as the node
+  reports them (getPublications, getSubscriptions: current, typed); as the snapshot had them
+  if it does not answer (a paused node, a starved one, one behind a partitioned link). The
+  nodes are asked all at once, so that a silent one costs one timeout in all and holds up
+  no other, and the master is asked who holds each name only once they have answered;
+- every publisher before any subscriber, each kind in one request: each registerPublisher
+  makes the master send the topic's subscribers the publishers it knows so far, and roscpp
+  drops its connection to a publisher missing from that list (Subscription::pubUpdate), so
+  no restored subscriber may be registered while a list is incomplete;
 - a restored subscriber whose topic has a publisher it cannot know of (one that registered
   with the new master before the restore, e.g. the new rosout): publisherUpdate with the full
   list, as the master would have sent had the subscriber been registered.
@@ -40,12 +44,16 @@ unregister at its shutdown matches. In order:
 Not restored: a node that first registered after the last snapshot (at most a keeper's period
 before the master went), parameter subscriptions (a roscpp getParamCached stays as it was),
 and anything if no keeper ran when the master went."""
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Callable, Dict, List, Optional, Sequence, Set, Tuple
 
 # The old master's value would make the new roscore's roslaunch fail: "run_id on parameter
 # server does not match declared run_id".
 NEVER_RESTORED = frozenset({"/run_id"})
+# Nodes asked at once during a restore: enough for the test bed's graph (about 30 nodes) to
+# take one round, few enough for the keeper's share of the robot.
+MAX_THREADS = 32
 
 
 class MasterCallError(Exception):
@@ -154,7 +162,7 @@ class RestoreReport:
     nodes: List[str] = field(default_factory=list)          # registered again
     unanswered: List[str] = field(default_factory=list)     # ... as the snapshot had them
     gone: List[str] = field(default_factory=list)           # their URI refused
-    already: List[str] = field(default_factory=list)        # registered again by themselves
+    already: List[str] = field(default_factory=list)        # names taken by a new process
     registrations: int = 0
     updates: int = 0                                        # publisherUpdates sent
     failures: List[str] = field(default_factory=list)
@@ -167,7 +175,7 @@ class RestoreReport:
         if self.unanswered:
             line += f"; {', '.join(self.unanswered)} did not answer: as the snapshot had them"
         if self.already:
-            line += f"; registered by themselves: {', '.join(self.already)}"
+            line += f"; taken by a new process (left to it): {', '.join(self.already)}"
         if self.gone:
             line += f"; gone (their API refuses connections): {', '.join(self.gone)}"
         if self.failures:
@@ -179,58 +187,98 @@ def restore(master, node_api: Callable[[str], object], snapshot: Snapshot,
             caller_id: str) -> RestoreReport:
     """Puts `snapshot` back on a new master (see the module's docstring). `master` has
     get_params(), set_params(pairs), lookup_nodes(names) -> {name: uri or None},
-    register_publisher/_subscriber(name, topic, type, uri) (the latter returns the
-    publishers' URIs) and register_service(name, service, service_uri, uri), raising
-    MasterCallError for a call it refuses and OSError if it cannot be reached (which ends the
-    restore: the master went again); `node_api(uri)` has publications(), subscriptions() and
-    publisher_update(topic, uris), raising NodeGone or NodeSilent."""
+    held_registrations() -> {name: {(kind, topic or service)}} (kind "pub", "sub" or "srv")
+    and register(calls), each call (method, caller_id, args), answered in one request with a
+    value or the MasterCallError it was refused with per call; it raises OSError if it cannot
+    be reached (which ends the restore: the next one completes it). `node_api(uri)` has
+    publications(), subscriptions() and publisher_update(topic, uris), raising NodeGone or
+    NodeSilent; node_api and its calls must be safe to use from several threads."""
     report = RestoreReport()
     pairs = missing_params(snapshot.params, master.get_params())
     master.set_params(pairs)
     report.params = len(pairs)
+    answers = _ask_all(node_api, snapshot.nodes)
+    # Looked up after the nodes answered, right before registering: a process that took a
+    # node's name meanwhile would be shut down by the master if the old URI were registered.
     known = master.lookup_nodes(sorted(snapshot.nodes))
+    held = master.held_registrations()
     todo: Dict[str, NodeRegistrations] = {}
     for name, saved in sorted(snapshot.nodes.items()):
-        if known.get(name):
+        if known.get(name) and known[name] != saved.uri:
             report.already.append(name)
             continue
-        try:
-            api = node_api(saved.uri)
-            todo[name] = NodeRegistrations(saved.uri, api.publications(), api.subscriptions(),
-                                           saved.services)
-        except NodeGone:
+        answer = answers[name]
+        if isinstance(answer, NodeGone):
             report.gone.append(name)
-        except NodeSilent:
+            continue
+        if isinstance(answer, NodeSilent):
             report.unanswered.append(name)
-            todo[name] = saved
-    for name, reg in todo.items():
-        for topic, type_ in reg.publications:
-            _register(report, name, topic, lambda: master.register_publisher(
-                name, topic, type_, reg.uri))
-        for service, service_uri in reg.services:
-            _register(report, name, service, lambda: master.register_service(
-                name, service, service_uri, reg.uri))
-    silent = set(report.unanswered)
-    for name, reg in todo.items():
-        for topic, type_ in reg.subscriptions:
-            publishers = _register(report, name, topic, lambda: master.register_subscriber(
-                name, topic, type_, reg.uri))
-            if publishers and set(publishers) - snapshot.publisher_uris.get(topic, set()) \
-                    and name not in silent:
-                try:
-                    node_api(reg.uri).publisher_update(topic, list(publishers))
-                    report.updates += 1
-                except (NodeGone, NodeSilent):
-                    silent.add(name)
-    report.nodes = sorted(todo)
+            answer = saved
+        # Under its own URI the master may know it already: rospy and roscpp register with
+        # whichever master answers (a resumed AMCL subscribes again), or a restore was broken
+        # off; what it holds is left as it is, the rest is added.
+        todo[name] = _without(NodeRegistrations(saved.uri, answer.publications,
+                                                answer.subscriptions, saved.services),
+                              held.get(name, set()))
+    firsts = [("registerPublisher", name, (topic, type_, reg.uri))
+              for name, reg in todo.items() for topic, type_ in reg.publications]
+    firsts += [("registerService", name, (service, service_uri, reg.uri))
+               for name, reg in todo.items() for service, service_uri in reg.services]
+    _registered(report, firsts, master.register(firsts))
+    subs = [("registerSubscriber", name, (topic, type_, reg.uri))
+            for name, reg in todo.items() for topic, type_ in reg.subscriptions]
+    replies = master.register(subs)
+    _registered(report, subs, replies)
+    missed = [(todo[name].uri, args[0], list(publishers))
+              for (_, name, args), publishers in zip(subs, replies)
+              if name not in report.unanswered and not isinstance(publishers, Exception)
+              and set(publishers) - snapshot.publisher_uris.get(args[0], set())]
+    report.updates = _tell_all(node_api, missed)
+    report.nodes = sorted(n for n, reg in todo.items()
+                          if reg.publications or reg.subscriptions or reg.services)
     return report
 
 
-def _register(report: RestoreReport, name: str, what: str, call):
-    try:
-        result = call()
-    except MasterCallError as e:     # one refused registration is reported, the rest go on
-        report.failures.append(f"{name} {what}: {e}")
-        return None
-    report.registrations += 1
-    return result
+def _ask_all(node_api, nodes: Dict[str, NodeRegistrations]) -> Dict[str, object]:
+    """Each node's own registrations, asked of all at once: a node that does not answer (paused,
+    starved) costs its timeout once for all of them, and no node waits behind it. Per name:
+    NodeRegistrations (its topics), or the NodeGone or NodeSilent it raised."""
+    def ask(saved):
+        try:
+            api = node_api(saved.uri)
+            return NodeRegistrations(saved.uri, api.publications(), api.subscriptions())
+        except (NodeGone, NodeSilent) as e:
+            return e
+    with ThreadPoolExecutor(max_workers=max(1, min(MAX_THREADS, len(nodes)))) as pool:
+        futures = {name: pool.submit(ask, saved) for name, saved in nodes.items()}
+        return {name: f.result() for name, f in futures.items()}
+
+
+def _tell_all(node_api, updates: List[Tuple[str, str, List[str]]]) -> int:
+    """publisherUpdate(topic, uris) to each (node URI, topic, uris), all at once; how many
+    nodes took it."""
+    def tell(update):
+        uri, topic, uris = update
+        try:
+            node_api(uri).publisher_update(topic, uris)
+            return 1
+        except (NodeGone, NodeSilent):
+            return 0
+    if not updates:
+        return 0
+    with ThreadPoolExecutor(max_workers=min(MAX_THREADS, len(updates))) as pool:
+        return sum(pool.map(tell, updates))
+
+
+def _without(reg: NodeRegistrations, held: Set[Tuple[str, str]]) -> NodeRegistrations:
+    return NodeRegistrations(reg.uri, [p for p in reg.publications if ("pub", p[0]) not in held],
+                             [s for s in reg.subscriptions if ("sub", s[0]) not in held],
+                             [s for s in reg.services if ("srv", s[0]) not in held])
+
+
+def _registered(report: RestoreReport, calls, replies):
+    for (_, name, args), reply in zip(calls, replies):
+        if isinstance(reply, Exception):    # one refused registration is reported, no more
+            report.failures.append(f"{name} {args[0]}: {reply}")
+        else:
+            report.registrations += 1

@@ -11,6 +11,7 @@ from anyscale_msgs.srv import (ListNodes, RenewLeases, SetWatchedTopics, StartNo
                                StopNode)
 
 from . import xmlrpc_calls
+from .service_lookup import RememberingServiceProxy, ServiceUris
 
 
 def call_with_timeout(fn: Callable, timeout_s: float):
@@ -48,10 +49,12 @@ class AgentClient:
         self.timeout_s = timeout_s
         self.stop_timeout_s = stop_timeout_s
         self.stop_sigint_timeout_s = stop_sigint_timeout_s
+        self.uris = ServiceUris()
 
     def call(self, scale: str, service: str, timeout_s: Optional[float] = None, **request):
         # A fresh proxy per call: proxies are not meant to be shared between threads.
-        proxy = rospy.ServiceProxy(f"/anyscale/{scale}/{service}", self.SERVICES[service])
+        proxy = RememberingServiceProxy(f"/anyscale/{scale}/{service}", self.SERVICES[service],
+                                        self.uris)
         return call_with_timeout(lambda: proxy(**request),
                                  self.timeout_s if timeout_s is None else timeout_s)
 

@@ -7,9 +7,10 @@ import math
 import pytest
 
 from anyscale_testbed import fault_schedule as fs
-from anyscale_testbed.soak_invariants import (
-    CensusSample, InjectedFault, ResourceSample, SoakModel, fixed_node_violations, growth,
-    judge_faults, process_leak, unchecked, unjudged_growth)
+from anyscale_testbed.soak_growth import ResourceSample, growth, unjudged_growth
+from anyscale_testbed.soak_invariants import (CensusSample, InjectedFault, SoakModel,
+                                              fixed_node_violations, judge_faults, process_leak,
+                                              unchecked)
 from anyscale_testbed.soak_report import (format_markdown, format_table, kind_rows, verdict_ok,
                                           write_csv)
 from anyscale_testbed.testbed_record import EventRecord, ProcessSample, TestbedRecord

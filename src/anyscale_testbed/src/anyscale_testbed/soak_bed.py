@@ -13,7 +13,8 @@ from typing import Dict, List, Optional, Tuple
 from . import fault_schedule as fs
 from .link_shaper import LinkSetting, apply_setting
 from .proc_census import master_processes, memory_and_fds, processes_with_master
-from .soak_invariants import CensusSample, ResourceSample
+from .soak_growth import ResourceSample
+from .soak_invariants import CensusSample
 from .testbed_monitor_ros import node_processes
 
 # The supervised processes: the name roslaunch gives them -> their role.

@@ -8,7 +8,8 @@ import statistics
 from typing import List, Sequence, Tuple
 
 from .fault_schedule import KINDS
-from .soak_invariants import FaultOutcome, Growth
+from .soak_growth import Growth
+from .soak_invariants import FaultOutcome
 
 
 @dataclass

@@ -32,8 +32,9 @@ from .demo_run import parse_args as demo_args
 from .link_shaper import apply_setting
 from .proc_census import processes_with_master
 from .soak_bed import Injector, Sampler, describe_state
-from .soak_invariants import (CensusSample, InjectedFault, ResourceSample, SoakModel, growth,
-                              judge_faults, process_leak, unchecked, unjudged_growth)
+from .soak_growth import ResourceSample, growth, unjudged_growth
+from .soak_invariants import (CensusSample, InjectedFault, SoakModel, judge_faults, process_leak,
+                              unchecked)
 from .soak_report import format_markdown, format_table, verdict_ok, write_csv
 from .testbed_record import TestbedRecord
 from .testbed_session import NamespaceBed, TestbedSession, layout_with_cpu

@@ -10,7 +10,7 @@ from anyscale_testbed import fault_schedule as fs
 from anyscale_testbed.soak_growth import ResourceSample, growth, unjudged_growth
 from anyscale_testbed.soak_invariants import (CensusSample, InjectedFault, SoakModel,
                                               fixed_node_violations, judge_faults, process_leak,
-                                              unchecked)
+                                              startup_silences, unchecked)
 from anyscale_testbed.soak_report import (format_markdown, format_table, kind_rows, verdict_ok,
                                           write_csv)
 from anyscale_testbed.testbed_record import EventRecord, ProcessSample, TestbedRecord
@@ -175,6 +175,35 @@ def test_a_silence_before_the_first_fault_is_the_start_ups_not_a_faults():
     [o] = judge_faults([fault(fs.KILL_DECISION, 30.0)], census(), record(silent=[(5.0, 12.0)]),
                        MODEL, END)
     assert o.violations == []
+
+
+def test_a_critical_silence_already_too_long_when_a_fault_struck_is_not_that_faults():
+    # The first CI soak charged /odom's silence at t≈16 s to the link flap after it: a silence
+    # that began up to 1 s (AR's period) before a fault was the fault's, but /odom's limit is
+    # 0.3 s, so a silence older than that was a violation before the fault struck.
+    faults = [fault(fs.SEGV_NODE, 20.0, target="amcl"), fault(fs.LINK_FLAP, 50.0, hold=2.0)]
+    before = with_critical_odom(record(), [(49.45, 50.2)])     # last message at 49.4
+    outcomes = judge_faults(faults, census(), before, MODEL, END)
+    assert outcomes[1].violations == []
+    assert outcomes[0].violations[0].startswith("/odom (critical, Δ 0) silent 0.80 s")
+    # One the fault may have made: begun within its limit before the fault, or after it.
+    for silent, words in [((49.85, 50.6), "began 0.20 s before the fault struck"),
+                          ((50.45, 51.0), "began 0.40 s after the fault struck")]:
+        outcomes = judge_faults(faults, census(), with_critical_odom(record(), [silent]), MODEL,
+                                END)
+        assert outcomes[0].violations == [] and words in outcomes[1].violations[0]
+
+
+def test_a_silence_too_long_before_the_first_fault_is_named_as_the_start_ups():
+    faults = [fault(fs.LINK_FLAP, 16.5, hold=2.0)]
+    rec = with_critical_odom(record(silent=[(3.0, 8.0)]), [(15.85, 16.6)])
+    [o] = judge_faults(faults, census(), rec, MODEL, END)
+    assert o.violations == []
+    assert startup_silences(faults, rec) == [
+        "/amcl_pose silent 5.20 s > Δ 2 s from t=2.8 s: before the first fault (the "
+        "start-up's, not judged as a fault's)",
+        "/odom (critical, Δ 0) silent 0.80 s > 0.30 s (a period at its freq_min 5 Hz + 0.1 s) "
+        "from t=15.8 s: before the first fault (the start-up's, not judged as a fault's)"]
 
 
 def test_a_master_that_lists_no_publisher_after_its_restart_is_never_recovered_from():

@@ -15,9 +15,11 @@ The invariants (issue 15):
   master's lists, for longer than that (a registration can outlive its process);
 - nodes that may not move (critical or pinned) never leave the master scale: not in the
   mapping, not in an event, not as a process elsewhere;
-- every connection's tolerance Δ: an output silent longer than Δ, charged to the fault in
-  whose window its silence began; a critical connection's (Δ 0) topic silent for longer than
-  a period at its freq_min (plus CRITICAL_SLACK_S), likewise;
+- every connection's tolerance Δ: an output silent longer than Δ, charged to the last fault
+  that struck before the silence became a violation (one already too long then is no doing of
+  that fault; one before the first fault is named as the start-up's); a critical
+  connection's (Δ 0) topic silent for longer than a period at its freq_min (plus
+  CRITICAL_SLACK_S), likewise;
 - the fault is recovered from before the next one: every supervisor (both agents, the
   decision node, the master) runs once, every node runs once where the mapping places it,
   every output has spoken since the fault ended, and the master lists a publisher for it;
@@ -34,8 +36,9 @@ from .testbed_record import TestbedRecord, Violation, mapping_at
 # An instance cut off from the robot runs until its lease ends; its agent checks leases about
 # once a second and the census samples twice a second: this long on top of the lease.
 LEASE_GRACE_S = 2.0
-# A silence that began this long before a fault is the fault's (its last message came just
-# before the fault struck): one period of AR's 1 Hz minimum.
+# A stretch of two instances or of a misplaced publisher that began this long before a fault
+# is the fault's, and so is the output silence reported as its worst: one period of AR's 1 Hz
+# minimum. (A silence's violation goes by its own limit: _owner.)
 FAULT_LEAD_S = 1.0
 # A critical connection (Δ 0) may never run below its freq_min: its topic silent for longer
 # than one period at freq_min is a violation, and on top of that period one period of the
@@ -108,15 +111,12 @@ def judge_faults(faults: Sequence[InjectedFault], census: Sequence[CensusSample]
         _charge(judged, t, text)
     for t, text in publisher_violations(rec, model):
         _charge(judged, t, text)
-    for v in tolerance_violations(rec):
-        _charge(judged, v.start_t,
-                f"{v.topic} silent {v.silence_s:.2f} s > Δ {v.tolerance_s:g} s from "
-                f"t={v.start_t:.1f} s")
-    for v in critical_violations(rec):
-        _charge(judged, v.start_t,
-                f"{v.topic} (critical, Δ 0) silent {v.silence_s:.2f} s > {v.tolerance_s:.2f} s "
-                f"(a period at its freq_min {rec.critical_freq_min[v.topic]:g} Hz + "
-                f"{CRITICAL_SLACK_S:g} s) from t={v.start_t:.1f} s")
+    for v, text in silence_violations(rec):
+        i = _charged_to([o.injected.t for o in judged], v)
+        if i is not None:
+            lag = v.start_t - judged[i].injected.t
+            judged[i].violations.append(f"{text} (began {abs(lag):.2f} s "
+                                        f"{'after' if lag >= 0 else 'before'} the fault struck)")
     for o in judged:
         o.worst_silence = worst_silence(rec, o.injected.t - FAULT_LEAD_S, o.window_end)
     return outcomes
@@ -138,6 +138,37 @@ def critical_violations(rec: TestbedRecord) -> List[Violation]:
         for a, b in silences_longer_than(rec.receipts.get(topic, []), limit, end):
             found.append(Violation(topic, a, b, b - a, limit, silence_cause(rec, set(), a, b)))
     return found
+
+
+def silence_violations(rec: TestbedRecord) -> List[Tuple[Violation, str]]:
+    """Every output silent longer than its Δ and every critical topic silent longer than its
+    limit (critical_violations), each with its words; tolerance_s is the limit."""
+    found = [(v, f"{v.topic} silent {v.silence_s:.2f} s > Δ {v.tolerance_s:g} s from "
+                 f"t={v.start_t:.1f} s") for v in tolerance_violations(rec)]
+    found += [(v, f"{v.topic} (critical, Δ 0) silent {v.silence_s:.2f} s > {v.tolerance_s:.2f} s "
+                  f"(a period at its freq_min {rec.critical_freq_min[v.topic]:g} Hz + "
+                  f"{CRITICAL_SLACK_S:g} s) from t={v.start_t:.1f} s")
+              for v in critical_violations(rec)]
+    return found
+
+
+def _charged_to(struck: Sequence[float], v: Violation) -> Optional[int]:
+    """Which of the faults struck at `struck` (in order) a silence is charged to: the last one
+    before the silence became a violation (its limit after its last message). A fault cannot
+    have made a silence that was already too long when it struck, whatever the topic's rate;
+    one that began within its limit before the fault may be the fault's (its last message came
+    just before). None before the first fault: the start-up's."""
+    before = [i for i, t in enumerate(struck) if t <= v.start_t + v.tolerance_s]
+    return before[-1] if before else None
+
+
+def startup_silences(faults: Sequence[InjectedFault], rec: TestbedRecord) -> List[str]:
+    """The silences that were violations before the first fault, in words: the start-up's (the
+    robot's node set coming up under its quota, the first moves), charged to no fault but
+    named, never passed by in silence."""
+    struck = sorted(f.t for f in faults if not f.error)
+    return [f"{text}: before the first fault (the start-up's, not judged as a fault's)"
+            for v, text in silence_violations(rec) if _charged_to(struck, v) is None]
 
 
 def unchecked(rec: TestbedRecord) -> List[str]:

@@ -34,7 +34,7 @@ from .proc_census import processes_with_master
 from .soak_bed import Injector, Sampler, describe_state
 from .soak_growth import ResourceSample, growth, unjudged_growth
 from .soak_invariants import (CensusSample, InjectedFault, SoakModel, judge_faults, process_leak,
-                              unchecked)
+                              startup_silences, unchecked)
 from .soak_report import format_markdown, format_table, verdict_ok, write_csv
 from .testbed_record import TestbedRecord
 from .testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
@@ -220,8 +220,7 @@ def run_schedule(schedule, sampler: Sampler, injector: Injector, world: subproce
     say("bench_fault_soak: waiting for every node to run once and AMCL to be on the laptop")
     while time.time() - began < SETUP_TIMEOUT_S and world.poll() is None:
         s = sampler.latest()
-        if s and all(len(v) == 1 for v in s.instances.values()) and \
-                s.instances.get("amcl") == ["laptop"]:
+        if s and set_up(s):
             break
         time.sleep(0.5)
     say(f"bench_fault_soak: set up after {time.time() - began:.0f} s: "
@@ -254,6 +253,11 @@ def run_schedule(schedule, sampler: Sampler, injector: Injector, world: subproce
         say(f"bench_fault_soak: after the last fault: {describe_state(sampler.latest())}")
 
 
+def set_up(s: CensusSample) -> bool:
+    """The soak's starting placement: every node once, AMCL on the laptop."""
+    return all(len(v) == 1 for v in s.instances.values()) and s.instances.get("amcl") == ["laptop"]
+
+
 def report(out: str, args, schedule, injected: List[InjectedFault], sampler: Sampler,
            record_path: str, soak: SoakModel, left: List[str]) -> int:
     """Moves the soak's samples to the record's clock, keeps them in OUT/soak.json (for
@@ -281,7 +285,7 @@ def judge(out: str, data: dict, rec: TestbedRecord, soak: SoakModel) -> int:
     outcomes = judge_faults(faults, census, rec, soak, end_t)
     left = list(data["leaks"]) + process_leak(census, rec, soak)
     growths = growth(resources)
-    missed = unchecked(rec) + unjudged_growth(resources)
+    missed = unchecked(rec) + startup_silences(faults, rec) + unjudged_growth(resources)
     title = (f"Fault soak: seed {data['seed']}, {data['minutes']:g} min, {len(faults)} of "
              f"{len(data['schedule'])} faults injected, {WORLD}")
     say(title)

@@ -92,3 +92,26 @@ def test_each_fault_says_what_it_does():
     assert "SIGSTOP" in words[fs.STOP_LAPTOP_AGENT]
     assert words[fs.SEGV_NODE].split()[-1] in TARGETS
     assert "roscore" in words[fs.RESTART_ROSCORE]
+
+
+class Sample:
+    def __init__(self, t, amcl, ar="robot"):
+        self.t = t
+        self.instances = {"amcl": amcl, "ar_recognition": [ar], "ekf": ["robot"]}
+
+
+def test_the_first_fault_waits_until_the_start_has_held_still_for_its_settling_pause():
+    # The first CI soak struck its first fault (a link flap) on the first census sample with
+    # AMCL on the laptop, in the middle of the start-up (AMCL's handover just done, AR's move
+    # coming): a silence of /odom then was charged to the flap.
+    samples = [Sample(t * 0.5, ["robot"]) for t in range(20)]                  # to 9.5 s
+    samples += [Sample(10.0, ["robot", "laptop"]), Sample(10.5, ["laptop"])]   # the handover
+    samples += [Sample(11.0 + t * 0.5, ["laptop"], "laptop") for t in range(30)]   # AR moved
+    at = fs.first_fault_at(samples, lambda s: s.instances["amcl"] == ["laptop"])
+    assert at == pytest.approx(11.0 + fs.START_SETTLE_S)
+    assert fs.first_fault_at(samples[:40], lambda s: s.instances["amcl"] == ["laptop"]) is None
+
+
+def test_the_start_never_set_up_has_no_first_fault():
+    samples = [Sample(t * 0.5, ["robot"]) for t in range(100)]
+    assert fs.first_fault_at(samples, lambda s: s.instances["amcl"] == ["laptop"]) is None

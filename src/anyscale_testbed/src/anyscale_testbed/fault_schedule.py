@@ -9,7 +9,7 @@ recover (SETTLE_S, measured on the test bed) plus a seeded jitter, so that a rec
 a violation belong to one fault."""
 from dataclasses import dataclass
 import random
-from typing import Dict, List, Optional, Sequence
+from typing import Callable, Dict, List, Optional, Sequence
 
 LINK_FLAP = "link_flap"
 BANDWIDTH_STEP = "bandwidth_step"
@@ -38,6 +38,11 @@ SETTLE_S: Dict[str, float] = {
     LINK_FLAP: 6.0, BANDWIDTH_STEP: 5.0, KILL_LAPTOP_AGENT: 8.0, KILL_ROBOT_AGENT: 20.0,
     KILL_DECISION: 6.0, STOP_LAPTOP_AGENT: 6.0, SEGV_NODE: 6.0, RESTART_ROSCORE: 20.0}
 JITTER_S = 4.0               # up to this much more, seeded
+# Before the first fault: the start's own settling, counted from the last change of placement
+# once the soak's starting placement is reached (AMCL on the laptop). AMCL's move out is
+# followed by AR's when the link carries it, and each moved node's connections are not judged
+# for the decision node's startup_grace_s (robot.launch: 8 s).
+START_SETTLE_S = 10.0
 # How often each kind is drawn once every kind has had its turn: link faults are the
 # everyday ones, process kills the rare ones.
 WEIGHTS: Dict[str, float] = {
@@ -133,6 +138,21 @@ def _draw(rng: random.Random, t: float, kind: str, mbps: float, segv_targets: Se
     if kind == SEGV_NODE:
         return Fault(round(t, 2), kind, target=rng.choice(list(segv_targets))), mbps
     return Fault(round(t, 2), kind), mbps
+
+
+def first_fault_at(samples: Sequence, ready: Callable[[object], bool]) -> Optional[float]:
+    """When the first fault may strike: START_SETTLE_S after the last change of placement (a
+    sample's `instances`), once every sample since has been `ready`; None while that has not
+    been so for START_SETTLE_S. `samples` in time order, each with .t and .instances."""
+    since = None
+    for before, s in zip([None] + list(samples[:-1]), samples):
+        if not ready(s):
+            since = None
+        elif since is None or before.instances != s.instances:
+            since = s.t
+    if since is None or samples[-1].t < since + START_SETTLE_S:
+        return None
+    return since + START_SETTLE_S
 
 
 def schedule_length_s(faults: Sequence[Fault]) -> float:

@@ -71,6 +71,10 @@ class Sampler(threading.Thread):
         with self.lock:
             return self.census[-1] if self.census else None
 
+    def samples(self) -> List[CensusSample]:
+        with self.lock:
+            return list(self.census)
+
 
 def describe_state(s: Optional[CensusSample]) -> str:
     """One line: where each node runs, and the supervisors that do not run exactly once."""

@@ -43,8 +43,8 @@ from .two_scale_testbed import TwoScaleError, run
 WORLD = "small_loop"
 LEASE_S = 3.0               # robot.launch's lease_s, which the soak leaves as it is
 # Before the first fault: the robot's node set takes 15-17 s to come up under its quota, and
-# AMCL goes out once the link has held for bandwidth_hold_s; faults wait for both, this long
-# at most.
+# AMCL goes out once the link has held for bandwidth_hold_s; faults wait for both and the
+# start's settling (fault_schedule.START_SETTLE_S), this long at most.
 SETUP_TIMEOUT_S = 90.0
 LOOP_S = 40.0               # the small loop takes longer than this at the robot's top speed
 
@@ -217,10 +217,10 @@ def run_schedule(schedule, sampler: Sampler, injector: Injector, world: subproce
     `injected` (wall clock) as it goes, so that an interrupted soak keeps what it did. Stops
     early if the world launch ends."""
     began = time.time()
-    say("bench_fault_soak: waiting for every node to run once and AMCL to be on the laptop")
+    say(f"bench_fault_soak: waiting for every node to run once and AMCL to be on the laptop, "
+        f"then {fs.START_SETTLE_S:g} s with nothing moving")
     while time.time() - began < SETUP_TIMEOUT_S and world.poll() is None:
-        s = sampler.latest()
-        if s and set_up(s):
+        if fs.first_fault_at(sampler.samples(), set_up) is not None:
             break
         time.sleep(0.5)
     say(f"bench_fault_soak: set up after {time.time() - began:.0f} s: "

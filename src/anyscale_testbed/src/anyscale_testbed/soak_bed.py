@@ -1,6 +1,7 @@
 """What the fault soak does on the running test bed (soak_run.py runs it): the census thread,
 which samples /proc twice a second (every instance of every node and its scale, the
-supervisors, the memory and file descriptors of the agents and the decision node), and the
+supervisors, the memory and file descriptors of the agents and the decision node, the CPU time
+of every process of the ROS system), and the
 injector, which strikes one fault of the schedule: the link through the link shaper's own
 functions, signals to the supervisors and to a node, a roscore killed and started again."""
 import os
@@ -12,7 +13,7 @@ from typing import Dict, List, Optional, Tuple
 
 from . import fault_schedule as fs
 from .link_shaper import LinkSetting, apply_setting
-from .proc_census import master_processes, memory_and_fds, processes_with_master
+from .proc_census import cpu_usage, master_processes, memory_and_fds, processes_with_master
 from .soak_growth import ResourceSample
 from .soak_invariants import CensusSample
 from .testbed_monitor_ros import node_processes
@@ -57,8 +58,14 @@ class Sampler(threading.Thread):
                 if used is not None:
                     resources.append(ResourceSample(now, role, pid, used[0], used[1]))
         supervisors["master"] = len(master_processes(self.master_uri))
+        system = processes_with_master(self.master_uri)
+        cpu = []
+        for pid in system:
+            used = cpu_usage(pid)
+            if used is not None:
+                cpu.append((used[0], used[1], pid, used[2]))
         sample = CensusSample(now, {n: sorted(s) for n, s in instances.items()}, supervisors,
-                              len(processes_with_master(self.master_uri)))
+                              len(system), cpu)
         with self.lock:
             self.census.append(sample)
             self.resources += resources

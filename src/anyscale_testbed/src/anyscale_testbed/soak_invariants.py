@@ -55,6 +55,7 @@ class CensusSample:
     instances: Dict[str, List[str]]      # node -> the scale of each live instance
     supervisors: Dict[str, int]          # role (SUPERVISORS) -> live processes
     processes: int = 0                   # every live process of this ROS system
+    cpu: List[Tuple[str, str, int, float]] = field(default_factory=list)   # soak_cpu.py
 
 
 @dataclass

@@ -77,16 +77,18 @@ def verdict_ok(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
 
 
 def detail_lines(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
-                 growths: Sequence[Growth], unchecked: Sequence[str] = ()) -> List[str]:
-    """Below the table: faults not injected, each violation with its fault, the leaks, the
-    growth of each process judged, and what could not be checked (named, so that a soak never
-    passes an invariant by without saying so)."""
+                 growths: Sequence[Growth], unchecked: Sequence[str] = (),
+                 notes: Sequence[str] = ()) -> List[str]:
+    """Below the table: faults not injected, each violation with its fault, `notes` on them
+    (e.g. who had the CPU), the leaks, the growth of each process judged, and what could not be
+    checked (named, so that a soak never passes an invariant by without saying so)."""
     lines = [f"NOT INJECTED fault {o.index} {o.kind} at t={o.injected.t:.1f} s: "
              f"{o.injected.error}" for o in outcomes if o.injected.error]
     for o in outcomes:
         for v in o.violations:
             lines.append(f"VIOLATION fault {o.index} {o.kind} at t={o.injected.t:.1f} s "
                          f"({o.injected.fault.describe()}): {v}")
+    lines += list(notes)
     lines += [f"LEAK {x}" for x in leaks]
     for g in growths:
         state = "GREW " + "; ".join(g.grew) if g.grew else "steady"
@@ -96,16 +98,18 @@ def detail_lines(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
 
 
 def format_table(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
-                 growths: Sequence[Growth], unchecked: Sequence[str] = ()) -> str:
+                 growths: Sequence[Growth], unchecked: Sequence[str] = (),
+                 notes: Sequence[str] = ()) -> str:
     table = [HEADER] + [_cells(r) for r in kind_rows(outcomes)]
     widths = [max(len(line[i]) for line in table) for i in range(len(HEADER))]
     lines = ["  ".join(c.ljust(w) for c, w in zip(line, widths)).rstrip() for line in table]
-    return "\n".join(lines + detail_lines(outcomes, leaks, growths, unchecked)
+    return "\n".join(lines + detail_lines(outcomes, leaks, growths, unchecked, notes)
                      + [total_line(outcomes, leaks, growths, unchecked)])
 
 
 def format_markdown(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
-                    growths: Sequence[Growth], title: str, unchecked: Sequence[str] = ()) -> str:
+                    growths: Sequence[Growth], title: str, unchecked: Sequence[str] = (),
+                    notes: Sequence[str] = ()) -> str:
     lines = [f"# {title}", "", "| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
     lines += ["| " + " | ".join(_cells(r)) + " |" for r in kind_rows(outcomes)]
     lines += ["", "## Faults", "", "| # | t [s] | kind | what | recovery | violations |",
@@ -117,7 +121,8 @@ def format_markdown(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
                      f"{'not injected: ' + o.injected.error if o.injected.error else _seconds(o.recovery_s)}"
                      f" | {len(o.violations)} |")
     lines += ["", "## Findings", ""]
-    lines += [f"- {x}" for x in detail_lines(outcomes, leaks, growths, unchecked)] or ["none"]
+    lines += [f"- {x}" for x in detail_lines(outcomes, leaks, growths, unchecked, notes)] or \
+        ["none"]
     lines += ["", total_line(outcomes, leaks, growths, unchecked), ""]
     return "\n".join(lines)
 

@@ -18,7 +18,7 @@ import os
 import subprocess
 import time
 from dataclasses import asdict
-from typing import List, Optional
+from typing import Dict, List, Optional, Tuple
 
 from anyscale_core.characterisation import critical_node_names
 from anyscale_core.cli_common import OneLineParser
@@ -33,12 +33,13 @@ from .link_shaper import apply_setting
 from .proc_census import processes_with_master
 from .soak_bed import Injector, Sampler, describe_state
 from .soak_growth import ResourceSample, growth, unjudged_growth
+from .soak_cpu import cpu_during, describe_cpu
 from .soak_invariants import (CensusSample, InjectedFault, SoakModel, judge_faults, process_leak,
-                              startup_silences, unchecked)
+                              silence_violations, startup_silences, unchecked)
 from .soak_report import format_markdown, format_table, verdict_ok, write_csv
 from .testbed_record import TestbedRecord
 from .testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
-from .two_scale_testbed import TwoScaleError, run
+from .two_scale_testbed import CGROUP_CPU_ROOT, TwoScaleError, run
 
 WORLD = "small_loop"
 LEASE_S = 3.0               # robot.launch's lease_s, which the soak leaves as it is
@@ -208,7 +209,9 @@ def main(root: str, argv=None) -> int:
         say(f"bench_fault_soak: no record at {record_path}; nothing to judge")
         return 1
     left = teardown_left + leftovers(bed, master_uri)
-    return report(out, args, schedule, injected, sampler, record_path, soak, left)
+    quotas = {"/" + os.path.relpath(q.path, CGROUP_CPU_ROOT): (scale, q.cores)
+              for scale, q in bed.quotas.items()}
+    return report(out, args, schedule, injected, sampler, record_path, soak, left, quotas)
 
 
 def run_schedule(schedule, sampler: Sampler, injector: Injector, world: subprocess.Popen,
@@ -259,9 +262,9 @@ def set_up(s: CensusSample) -> bool:
 
 
 def report(out: str, args, schedule, injected: List[InjectedFault], sampler: Sampler,
-           record_path: str, soak: SoakModel, left: List[str]) -> int:
+           record_path: str, soak: SoakModel, left: List[str], quotas: Dict[str, Tuple]) -> int:
     """Moves the soak's samples to the record's clock, keeps them in OUT/soak.json (for
-    --judge) and judges them."""
+    --judge) and judges them. `quotas`: CPU cgroup -> (scale, cores)."""
     rec = TestbedRecord.load(record_path)
     zero = rec.started_wall
     data = {"seed": args.seed, "minutes": args.minutes, "record_started_wall": zero,
@@ -269,7 +272,7 @@ def report(out: str, args, schedule, injected: List[InjectedFault], sampler: Sam
             "injected": [dict(asdict(f), t=f.t - zero, end=f.end - zero) for f in injected],
             "census": [dict(asdict(c), t=c.t - zero) for c in sampler.census],
             "resources": [dict(asdict(r), t=r.t - zero) for r in sampler.resources],
-            "leaks": left}
+            "leaks": left, "quotas": quotas}
     with open(os.path.join(out, "soak.json"), "w") as f:
         json.dump(data, f)
     return judge(out, data, rec, soak)
@@ -286,13 +289,16 @@ def judge(out: str, data: dict, rec: TestbedRecord, soak: SoakModel) -> int:
     left = list(data["leaks"]) + process_leak(census, rec, soak)
     growths = growth(resources)
     missed = unchecked(rec) + startup_silences(faults, rec) + unjudged_growth(resources)
+    quotas = {group: tuple(q) for group, q in data.get("quotas", {}).items()}
+    cpu = [f"CPU while {text}: {describe_cpu(*cpu_during(census, v.start_t, v.end_t), quotas)}"
+           for v, text in silence_violations(rec)]
     title = (f"Fault soak: seed {data['seed']}, {data['minutes']:g} min, {len(faults)} of "
              f"{len(data['schedule'])} faults injected, {WORLD}")
     say(title)
-    say(format_table(outcomes, left, growths, missed))
+    say(format_table(outcomes, left, growths, missed, cpu))
     write_csv(os.path.join(out, "fault_soak.csv"), outcomes)
     with open(os.path.join(out, "fault_soak.md"), "w") as f:
-        f.write(format_markdown(outcomes, left, growths, title, missed))
+        f.write(format_markdown(outcomes, left, growths, title, missed, cpu))
     say(f"bench_fault_soak: {out}/fault_soak.csv, fault_soak.md, soak.json")
     return 0 if verdict_ok(outcomes, left, growths) else 1
 

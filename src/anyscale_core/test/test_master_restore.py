@@ -91,7 +91,7 @@ def test_the_snapshot_holds_each_nodes_uri_topics_types_and_services():
 def test_a_restarted_master_gets_the_parameters_and_every_live_nodes_registrations_back():
     nodes = graph_before()
     new, graph, snapshot = restarted(nodes, gone={"http://robot:5/"})
-    report = restore(Direct(new), graph.api, snapshot, "/keeper")
+    report = restore(Direct(new), graph.api, snapshot)
     assert new.params["amcl"] == {"min_particles": 500} and new.params["run_id"] == "run-b"
     assert report.params == 1
     assert report.gone == ["/ended"] and "/ended" not in new.nodes
@@ -109,7 +109,7 @@ def test_no_subscriber_loses_a_connection_while_the_registrations_come_back():
     # every publisher of its topic would cut /navigation from one of the two /scan publishers.
     nodes = graph_before()
     new, graph, snapshot = restarted(nodes)
-    restore(Direct(new), graph.api, snapshot, "/keeper")
+    restore(Direct(new), graph.api, snapshot)
     assert [n.dropped for n in nodes] == [[]] * len(nodes)
     assert nodes[3].connected[SCAN] == {"http://robot:1/", "http://robot:2/"}
 
@@ -121,7 +121,7 @@ def test_a_subscriber_is_told_of_a_publisher_that_registered_with_the_new_master
     respawned = FakeNode("/relay", "http://robot:7/", [(SCAN, T_SCAN)])
     graph.nodes[respawned.uri] = respawned
     new.registerPublisher("/relay", SCAN, T_SCAN, respawned.uri)
-    report = restore(Direct(new), graph.api, snapshot, "/keeper")
+    report = restore(Direct(new), graph.api, snapshot)
     assert "/relay" in report.already and new.shutdowns == []    # the new process stays
     assert nodes[3].connected[SCAN] == {"http://robot:1/", "http://robot:7/"}
     assert report.updates == 2                                   # /amcl and /navigation
@@ -130,7 +130,7 @@ def test_a_subscriber_is_told_of_a_publisher_that_registered_with_the_new_master
 def test_a_node_that_does_not_answer_is_registered_as_the_snapshot_had_it():
     nodes = graph_before()
     new, graph, snapshot = restarted(nodes, silent={"http://laptop:3/"})   # AMCL, paused
-    report = restore(Direct(new), graph.api, snapshot, "/keeper")
+    report = restore(Direct(new), graph.api, snapshot)
     assert report.unanswered == ["/amcl"]
     assert ("/amcl", "http://laptop:3/") in new.publishers[POSE]
     assert ("/amcl", "http://laptop:3/") in new.subscribers[SCAN]
@@ -141,7 +141,7 @@ def test_a_node_reports_its_current_topics_over_the_snapshots():
     nodes = graph_before()
     new, graph, snapshot = restarted(nodes)
     nodes[2].pubs.append(("/particlecloud", "geometry_msgs/PoseArray"))   # since the snapshot
-    restore(Direct(new), graph.api, snapshot, "/keeper")
+    restore(Direct(new), graph.api, snapshot)
     assert new.publishers["/particlecloud"] == [("/amcl", "http://laptop:3/")]
 
 
@@ -149,7 +149,7 @@ def test_a_registration_the_master_refuses_is_reported_and_the_others_go_on():
     nodes = graph_before()
     new, graph, snapshot = restarted(nodes, gone={"http://robot:5/"})
     new.refuse.add(POSE)
-    report = restore(Direct(new), graph.api, snapshot, "/keeper")
+    report = restore(Direct(new), graph.api, snapshot)
     assert report.failures == [f"/amcl {POSE}: refused {POSE}"]
     assert len(new.publishers[SCAN]) == 2
     assert "FAILED: /amcl /amcl_pose: refused /amcl_pose" in report.describe()
@@ -159,7 +159,7 @@ def test_a_registration_the_master_refuses_is_reported_and_the_others_go_on():
 def test_restoring_twice_changes_nothing_the_second_time(order):
     nodes = graph_before()
     new, graph, snapshot = restarted(nodes if order == "nodes" else nodes[::-1])
-    restore(Direct(new), graph.api, snapshot, "/keeper")
-    again = restore(Direct(new), graph.api, snapshot, "/keeper")
+    restore(Direct(new), graph.api, snapshot)
+    again = restore(Direct(new), graph.api, snapshot)
     assert again.params == 0 and again.nodes == [] and again.registrations == 0
     assert len(new.publishers[SCAN]) == 2 and new.shutdowns == []

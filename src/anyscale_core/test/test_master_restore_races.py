@@ -52,7 +52,7 @@ def test_nodes_are_asked_at_once_so_a_silent_one_costs_one_timeout_in_all():
         return Slow(graph.api(uri), 0.2 if uri.startswith("http://robot:2") else 0.0)
 
     began = time.monotonic()
-    report = restore(Direct(new), api, snapshot, "/keeper")
+    report = restore(Direct(new), api, snapshot)
     assert time.monotonic() - began < 1.5
     assert report.unanswered == ["/amcl_robot"] and report.failures == []
     assert sorted(new.publishers[POSE]) == [("/amcl", "http://laptop:3/"),
@@ -68,7 +68,7 @@ def test_a_node_that_registered_again_by_itself_under_its_uri_gets_the_rest_back
     nodes = graph_before()
     new, graph, snapshot = restarted(nodes, gone={"http://robot:5/"})
     new.registerSubscriber("/amcl", SCAN, T_SCAN, "http://laptop:3/")
-    report = restore(Direct(new), graph.api, snapshot, "/keeper")
+    report = restore(Direct(new), graph.api, snapshot)
     assert new.publishers[POSE] == [("/amcl", "http://laptop:3/")]
     assert new.subscribers[SCAN].count(("/amcl", "http://laptop:3/")) == 1
     assert "/amcl" not in report.already and new.shutdowns == []
@@ -93,8 +93,8 @@ def test_a_restore_the_master_broke_off_is_completed_by_the_next_one():
     for calls in range(12):
         new, graph, snapshot = restarted(graph_before(), gone={"http://robot:5/"})
         with contextlib.suppress(OSError):
-            restore(BreaksOff(new, calls), graph.api, snapshot, "/keeper")
-        restore(Direct(new), graph.api, snapshot, "/keeper")
+            restore(BreaksOff(new, calls), graph.api, snapshot)
+        restore(Direct(new), graph.api, snapshot)
         assert sorted(n for n, _ in new.subscribers[SCAN]) == ["/amcl", "/navigation"], calls
         assert sorted(n for n, _ in new.subscribers[POSE]) == ["/navigation"]
         assert sorted(n for n, _ in new.publishers[SCAN]) == ["/laser", "/relay"]
@@ -121,6 +121,6 @@ def test_a_process_that_took_its_name_while_the_nodes_were_asked_is_not_shut_dow
     def api(uri):
         return Respawning() if uri == "http://robot:1/" else graph.api(uri)
 
-    report = restore(Direct(new), api, snapshot, "/keeper")
+    report = restore(Direct(new), api, snapshot)
     assert new.shutdowns == [] and "/relay" in report.already
     assert ("/relay", "http://robot:7/") in new.publishers[SCAN]

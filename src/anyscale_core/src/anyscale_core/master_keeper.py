@@ -202,7 +202,7 @@ class MasterKeeper:
                              f"{identity.pid}): it lost every parameter and registration; "
                              f"putting back what it held "
                              f"{self.clock() - self.snapshot.taken_at:.1f} s before")
-            report = restore(self.master, self.node_api, self.snapshot, self.master.caller_id)
+            report = restore(self.master, self.node_api, self.snapshot)
             self.log("ERROR" if report.failures else "INFO", report.describe())
             identity, params, system_state, types = self.master.state()
         found = self.master.lookups(node_names(system_state), service_names(system_state),

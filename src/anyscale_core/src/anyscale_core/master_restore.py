@@ -183,8 +183,7 @@ class RestoreReport:
         return line
 
 
-def restore(master, node_api: Callable[[str], object], snapshot: Snapshot,
-            caller_id: str) -> RestoreReport:
+def restore(master, node_api: Callable[[str], object], snapshot: Snapshot) -> RestoreReport:
     """Puts `snapshot` back on a new master (see the module's docstring). `master` has
     get_params(), set_params(pairs), lookup_nodes(names) -> {name: uri or None},
     held_registrations() -> {name: {(kind, topic or service)}} (kind "pub", "sub" or "srv")

@@ -29,7 +29,7 @@ from anyscale_core.model_loader import load_model
 from anyscale_core.ros_convert import EVENT_NAMES
 
 from .testbed_figures import colour_violations, format_summary, tolerance_violations
-from .testbed_record import EventRecord, ProcessSample, TestbedRecord
+from .testbed_record import EventRecord, ProcessSample, TestbedRecord, save_record
 
 
 # python_standby's comm from its exec until it renames itself, and while it waits.
@@ -256,9 +256,7 @@ class TestbedMonitor:
     def save(self):
         with self.lock:
             self.rec.violations = tolerance_violations(self.rec)
-            tmp = self.record_path + ".tmp"
-            self.rec.save(tmp)
-        os.replace(tmp, self.record_path)
+        save_record(self.rec, self.lock, self.record_path)
 
 
 def main(argv=None) -> int:

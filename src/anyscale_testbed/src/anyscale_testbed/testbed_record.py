@@ -80,6 +80,20 @@ class TestbedRecord:
         with open(path, "w") as f:
             json.dump(asdict(self), f, allow_nan=True)
 
+    def snapshot(self) -> "TestbedRecord":
+        """A copy of the record as it is, made in a few ms for a long one: every list and
+        dict of lists copied, their items shared (the monitor appends items, never changes
+        one)."""
+        copy = {}
+        for name in self.__dataclass_fields__:
+            value = getattr(self, name)
+            if isinstance(value, list):
+                value = list(value)
+            elif isinstance(value, dict):
+                value = {k: list(v) if isinstance(v, list) else v for k, v in value.items()}
+            copy[name] = value
+        return TestbedRecord(**copy)
+
     @staticmethod
     def load(path: str) -> "TestbedRecord":
         with open(path) as f:
@@ -105,6 +119,17 @@ def store_cpu_normalisation(path: str, history: Sequence[Tuple[float, float, flo
     rec.reference_cpu_ms = reference_cpu_ms
     tmp = path + ".tmp"
     rec.save(tmp)
+    os.replace(tmp, path)
+
+
+def save_record(rec: TestbedRecord, lock, path: str):
+    """Writes `rec` to `path` (whole, or not at all: through a temporary file), holding `lock`
+    only to copy it: the monitor's receive threads take that lock to note each message, and a
+    message noted after a save of a long record would be noted that much late."""
+    with lock:
+        copy = rec.snapshot()
+    tmp = path + ".tmp"
+    copy.save(tmp)
     os.replace(tmp, path)
 
 

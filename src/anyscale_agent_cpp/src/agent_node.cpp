@@ -109,7 +109,8 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
 
   topics_ = std::make_unique<TopicWatcher>(nh_, positive(pnh_, "rate_window_s", 2.0),
                                            std::max(1, param(pnh_, "topic_queue_size", 50)),
-                                           param(pnh_, "watch_all", false));
+                                           param(pnh_, "watch_all", false),
+                                           [this](const std::string& publisher) { endBoostAtOutput(publisher); });
   std::string error;
   if (!topics_->setWatched(param(pnh_, "watched_topics", std::vector<std::string>{}), &error))
     throw std::runtime_error("parameter ~watched_topics: " + error);

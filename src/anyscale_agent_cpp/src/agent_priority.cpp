@@ -1,5 +1,5 @@
 // Priorities: the agent's own (~control_nice), and each node's declared launch.nice with the start
-// boost (~start_boost_nice for its first ~start_boost_s), ended on the supervision thread.
+// boost (~start_boost_nice until its first output, for ~start_boost_s at most).
 #include "anyscale_agent_cpp/agent_node.h"
 
 #include <unistd.h>
@@ -26,9 +26,6 @@ void AgentNode::raiseControlPriority(int control_nice)
 
 void AgentNode::setStartPriority(const std::string& name, int pid, int nice)
 {
-  // Relative to the declared nice also when both nodes are resumed (agent README, "Paused at
-  // home"): AR recognition takes every frame it can, and resumed at AMCL's priority it halved
-  // AMCL's CPU for the whole boost (AMCL's return 2.43 s, Δ 2 s).
   const int start_nice = boosts_.startNice(nice);
   std::string error;
   if (start_nice != 0 && !setProcessNice(pid, start_nice, &error))
@@ -37,8 +34,26 @@ void AgentNode::setStartPriority(const std::string& name, int pid, int nice)
                   start_nice, error.c_str(), start_nice < 0 ? ": raising a priority needs CAP_SYS_NICE" : "");
     return;
   }
+  // Its messages carry the name it runs under here: the boost ends at the first one this agent
+  // counts (a node whose output no one subscribes to here keeps it for ~start_boost_s).
+  std::string publisher = rosName(name);
+  if (publisher.empty() || publisher[0] != '/')
+    publisher.insert(0, "/");
   std::lock_guard<std::mutex> lock(boost_mutex_);
-  boosts_.started(name, pid, nice, steadyNow());
+  boosts_.started(name, publisher, pid, nice, steadyNow());
+}
+
+void AgentNode::endBoostAtOutput(const std::string& publisher)
+{
+  std::optional<StartBoosts::Due> due;
+  {
+    std::lock_guard<std::mutex> lock(boost_mutex_);
+    if (boosts_.empty())
+      return;
+    due = boosts_.published(publisher);
+  }
+  if (due)
+    endBoost(*due);
 }
 
 void AgentNode::endBoosts()
@@ -49,12 +64,15 @@ void AgentNode::endBoosts()
     due = boosts_.takeDue(steadyNow());
   }
   for (const auto& boost : due)
-  {
-    const auto info = supervisor_.info(boost.name);
-    std::string error;
-    if (info && info->pid == boost.pid && !setProcessNice(boost.pid, boost.nice, &error))
-      ROS_WARN("%s: could not end its start priority: %s", boost.name.c_str(), error.c_str());
-  }
+    endBoost(boost);
+}
+
+void AgentNode::endBoost(const StartBoosts::Due& boost)
+{
+  const auto info = supervisor_.info(boost.name);
+  std::string error;
+  if (info && info->pid == boost.pid && !setProcessNice(boost.pid, boost.nice, &error))
+    ROS_WARN("%s: could not end its start priority: %s", boost.name.c_str(), error.c_str());
 }
 
 }  // namespace anyscale_agent

@@ -33,8 +33,9 @@ void InlineCallbackQueue::removeByID(uint64_t)
   // Nothing is ever held here.
 }
 
-TopicWatcher::TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all)
-  : nh_(nh), window_s_(window_s), queue_size_(queue_size), watch_all_(watch_all)
+TopicWatcher::TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all,
+                           PublisherSeen on_publisher)
+  : nh_(nh), window_s_(window_s), queue_size_(queue_size), watch_all_(watch_all), on_publisher_(std::move(on_publisher))
 {
   nh_.setCallbackQueue(&inline_queue_);
 }
@@ -77,17 +78,21 @@ void TopicWatcher::subscribe(const std::string& topic, const std::shared_ptr<Cou
 {
   std::weak_ptr<Counter> weak = c;
   boost::function<void(const ros::MessageEvent<topic_tools::ShapeShifter const>&)> cb =
-      [weak](const ros::MessageEvent<topic_tools::ShapeShifter const>& event) {
+      [weak, seen = on_publisher_](const ros::MessageEvent<topic_tools::ShapeShifter const>& event) {
         const auto counter = weak.lock();
         if (!counter)
           return;
-        const auto& msg = event.getConstMessage();
-        std::lock_guard<std::mutex> lock(counter->mutex);
-        // Receipt time is stamped by the transport thread when the message arrives.
-        counter->window.add(event.getReceiptTime().toSec(), msg->size());
-        counter->last_seen = steadyNow();
-        if (counter->datatype.empty())
-          counter->datatype = msg->getDataType();
+        {
+          const auto& msg = event.getConstMessage();
+          std::lock_guard<std::mutex> lock(counter->mutex);
+          // Receipt time is stamped by the transport thread when the message arrives.
+          counter->window.add(event.getReceiptTime().toSec(), msg->size());
+          counter->last_seen = steadyNow();
+          if (counter->datatype.empty())
+            counter->datatype = msg->getDataType();
+        }
+        if (seen)
+          seen(event.getPublisherName());
       };
   {
     std::lock_guard<std::mutex> lock(c->mutex);

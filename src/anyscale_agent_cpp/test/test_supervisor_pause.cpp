@@ -44,7 +44,7 @@ TEST(SupervisorPause, APausedNodeDoesNothingAndResumesWhereItWas)
 
   ASSERT_TRUE(s.pause("ticker", &err)) << err;
   EXPECT_EQ(s.info("ticker")->state, ProcState::Paused);
-  ASSERT_TRUE(waitUntil([&] { return procState(pid) == 'T'; }, 2.0, s));
+  ASSERT_TRUE(waitUntil([&] { return procState(pid) == 'T'; }, 2.0, s)) << "state " << procState(pid);
   const std::size_t paused_at = fileSize(ticks);
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   s.poll();

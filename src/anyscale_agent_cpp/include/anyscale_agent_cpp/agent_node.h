@@ -74,11 +74,13 @@ private:
   // Grants (lease_s > 0) or drops the lease of `name`, also in the supervisor's state file.
   void grantLease(const std::string& name, double lease_s);
 
-  // Priorities (agent_priority.cpp): the agent's ~control_nice; a node's launch.nice, with
-  // ~start_boost_nice added for its first ~start_boost_s.
+  // Priorities (agent_priority.cpp): the agent's ~control_nice; a node's launch.nice, at
+  // ~start_boost_nice from its start until its first output, for ~start_boost_s at most.
   void raiseControlPriority(int control_nice);
   void setStartPriority(const std::string& name, int pid, int nice);
-  void endBoosts();  // on the supervision thread
+  void endBoosts();                                       // on the supervision thread
+  void endBoostAtOutput(const std::string& publisher);    // in a topic counter's thread
+  void endBoost(const StartBoosts::Due& boost);
 
   // Warm standbys (agent_services.cpp): one per warm_start node, also while it runs here.
   void keepStandbysReady();

@@ -34,9 +34,13 @@ public:
 class TopicWatcher
 {
 public:
+  // Called with each message's publisher (its caller id), in the transport thread; keep it short.
+  using PublisherSeen = std::function<void(const std::string& publisher)>;
+
   // Subscriptions use topic_tools::ShapeShifter, so nothing is deserialised: the counter sees
-  // the serialized size and the receipt time only.
-  TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all);
+  // the serialized size, the receipt time and the publisher only.
+  TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all,
+               PublisherSeen on_publisher = {});
 
   // The topics to watch (resolved names). Topics are validated here; returns false with the
   // offending name in *error and changes nothing.
@@ -76,6 +80,7 @@ private:
   double window_s_;
   int queue_size_;
   bool watch_all_;
+  PublisherSeen on_publisher_;
   // Held across subscribing and unsubscribing (calls to the master, which may wait), so that
   // stats() never waits for them under mutex_.
   std::mutex subscribing_;

@@ -286,7 +286,8 @@ def judge(out: str, data: dict, rec: TestbedRecord, soak: SoakModel) -> int:
     faults = [InjectedFault(**dict(f, fault=fs.Fault(**f["fault"]))) for f in data["injected"]]
     end_t = census[-1].t if census else 0.0
     outcomes = judge_faults(faults, census, rec, soak, end_t)
-    left = list(data["leaks"]) + process_leak(census, rec, soak)
+    left = list(data["leaks"]) + process_leak(census, rec, soak,
+                                                min((f.t for f in faults), default=0.0))
     growths = growth(resources)
     missed = unchecked(rec) + startup_silences(faults, rec) + unjudged_growth(resources)
     quotas = {group: tuple(q) for group, q in data.get("quotas", {}).items()}

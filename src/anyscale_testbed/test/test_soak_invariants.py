@@ -162,6 +162,22 @@ def test_the_sensors_stopping_together_at_the_end_is_no_critical_silence():
     assert [(v.topic, round(v.silence_s, 1)) for v in critical_violations(rec)] == [("/scan", 1.3)]
 
 
+def test_an_output_is_judged_up_to_the_teardown_not_to_the_records_end():
+    # The soak's system test, run 2: /ar_markers' last message came 0.51 s before the sensors
+    # stopped together for the teardown, the monitor recorded 0.68 s longer, and the tail was
+    # judged "silent 1.19 s > Δ 1 s", charged to the roscore restart 20 s before it.
+    faults = [fault(fs.RESTART_ROSCORE, 70.0, hold=1.2)]
+    rec = with_critical_odom(record(silent=[(END - 2.8, END)]), [(END - 1.2, END)])
+    rec.finished_t = END
+    [o] = judge_faults(faults, census(), rec, MODEL, END)
+    assert o.violations == []
+    # One silent too long before the teardown still is a violation, counted up to there.
+    rec = with_critical_odom(record(silent=[(END - 4.0, END)]), [(END - 1.2, END)])
+    rec.finished_t = END
+    [o] = judge_faults(faults, census(), rec, MODEL, END)
+    assert len(o.violations) == 1 and "/amcl_pose silent 2.90 s > Δ 2 s" in o.violations[0]
+
+
 def test_a_record_without_the_critical_topics_says_their_check_was_not_made():
     assert unchecked(with_critical_odom(record())) == []
     [missing] = unchecked(record())

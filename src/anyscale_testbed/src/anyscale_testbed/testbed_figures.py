@@ -189,12 +189,14 @@ def move_figures(rec: TestbedRecord, outputs: Dict[str, str]) -> List[MoveFigure
 
 
 def tolerance_violations(rec: TestbedRecord, outputs: Optional[Dict[str, str]] = None,
-                         tolerances: Optional[Dict[str, float]] = None) -> List[Violation]:
+                         tolerances: Optional[Dict[str, float]] = None,
+                         end: Optional[float] = None) -> List[Violation]:
     """Every silence of an output topic longer than its connection's tolerance Δ (the
-    record's own outputs and tolerances unless given), with what happened around it."""
+    record's own outputs and tolerances unless given), with what happened around it, up to
+    `end` (the record's end unless given)."""
     outputs = rec.outputs if outputs is None else outputs
     tolerances = rec.tolerances if tolerances is None else tolerances
-    end = record_end(rec)
+    end = record_end(rec) if end is None else end
     found = []
     for topic, tol in sorted(tolerances.items()):
         if tol <= 0:

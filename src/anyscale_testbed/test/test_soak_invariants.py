@@ -178,6 +178,23 @@ def test_an_output_is_judged_up_to_the_teardown_not_to_the_records_end():
     assert len(o.violations) == 1 and "/amcl_pose silent 2.90 s > Δ 2 s" in o.violations[0]
 
 
+def test_a_silence_just_over_its_limit_is_printed_so_that_it_reads_over():
+    # Run 2 printed "/joint_states (critical, Δ 0) silent 0.20 s > 0.20 s": 0.204 s against
+    # 0.200 s, rounded alike.
+    rec = record()
+    rec.critical_freq_min = {"/joint_states": 10.0}
+    rec.receipts["/joint_states"] = [t for t in (i * 0.05 for i in range(int(END / 0.05)))
+                                     if not 50.0 < t < 50.25] + [50.204]
+    faults = [fault(fs.BANDWIDTH_STEP, 45.0, mbps=3.0)]
+    [o] = judge_faults(faults, census(), rec, MODEL, END)
+    assert len(o.violations) == 1
+    assert o.violations[0].startswith("/joint_states (critical, Δ 0) silent 0.204 s > 0.200 s")
+    rec = record(silent=[(50.1, 52.2)])     # /amcl_pose: 2.004 s against its Δ of 2 s
+    rec.receipts["/amcl_pose"] = sorted(rec.receipts["/amcl_pose"] + [52.004])
+    [o] = judge_faults(faults, census(), rec, MODEL, END)
+    assert "/amcl_pose silent 2.004 s > Δ 2 s" in o.violations[0]
+
+
 def test_a_record_without_the_critical_topics_says_their_check_was_not_made():
     assert unchecked(with_critical_odom(record())) == []
     [missing] = unchecked(record())

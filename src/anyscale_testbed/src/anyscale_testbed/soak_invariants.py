@@ -152,13 +152,24 @@ def critical_violations(rec: TestbedRecord) -> List[Violation]:
 def silence_violations(rec: TestbedRecord) -> List[Tuple[Violation, str]]:
     """Every output silent longer than its Δ and every critical topic silent longer than its
     limit (critical_violations), each with its words; tolerance_s is the limit."""
-    found = [(v, f"{v.topic} silent {v.silence_s:.2f} s > Δ {v.tolerance_s:g} s from "
-                 f"t={v.start_t:.1f} s") for v in tolerance_violations(rec, end=judged_end(rec))]
-    found += [(v, f"{v.topic} (critical, Δ 0) silent {v.silence_s:.2f} s > {v.tolerance_s:.2f} s "
+    found = [(v, f"{v.topic} silent {_seconds(v.silence_s, v.tolerance_s)} s > Δ "
+                 f"{v.tolerance_s:g} s from t={v.start_t:.1f} s")
+             for v in tolerance_violations(rec, end=judged_end(rec))]
+    found += [(v, f"{v.topic} (critical, Δ 0) silent {_seconds(v.silence_s, v.tolerance_s)} s > "
+                  f"{_seconds(v.tolerance_s, v.silence_s)} s "
                   f"(a period at its freq_min {rec.critical_freq_min[v.topic]:g} Hz + "
                   f"{CRITICAL_SLACK_S:g} s) from t={v.start_t:.1f} s")
               for v in critical_violations(rec)]
     return found
+
+
+def _seconds(value: float, other: float) -> str:
+    """`value` to 2 decimals, or to as many more (up to 6) as it takes not to show it equal to
+    `other`: a silence 4 ms over its limit read "silent 0.20 s > 0.20 s"."""
+    digits = 2
+    while digits < 6 and f"{value:.{digits}f}" == f"{other:.{digits}f}":
+        digits += 1
+    return f"{value:.{digits}f}"
 
 
 def _charged_to(struck: Sequence[float], v: Violation) -> Optional[int]:

@@ -9,8 +9,8 @@ import pytest
 from anyscale_testbed import fault_schedule as fs
 from anyscale_testbed.soak_growth import ResourceSample, growth, unjudged_growth
 from anyscale_testbed.soak_invariants import (CensusSample, InjectedFault, SoakModel,
-                                              fixed_node_violations, judge_faults, process_leak,
-                                              startup_silences, unchecked)
+                                              fixed_node_violations, judge_faults, process_leak)
+from anyscale_testbed.soak_silences import critical_violations, startup_silences, unchecked
 from anyscale_testbed.soak_report import (format_markdown, format_table, kind_rows, verdict_ok,
                                           write_csv)
 from anyscale_testbed.testbed_record import EventRecord, ProcessSample, TestbedRecord
@@ -151,7 +151,6 @@ def test_a_critical_topic_silent_for_more_than_a_period_at_its_freq_min_is_a_vio
 
 
 def test_the_sensors_stopping_together_at_the_end_is_no_critical_silence():
-    from anyscale_testbed.soak_invariants import critical_violations
     rec = with_critical_odom(record(), [(END - 0.7, END)])     # the teardown's tail
     rec.critical_freq_min["/scan"] = 5.0
     rec.receipts["/scan"] = list(rec.receipts["/odom"])

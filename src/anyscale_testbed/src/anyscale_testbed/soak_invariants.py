@@ -19,7 +19,7 @@ The invariants (issue 15):
   that struck before the silence became a violation (one already too long then is no doing of
   that fault; one before the first fault is named as the start-up's); a critical
   connection's (Δ 0) topic silent for longer than a period at its freq_min (plus
-  CRITICAL_SLACK_S), likewise;
+  CRITICAL_SLACK_S), likewise (the silences themselves: soak_silences.py);
 - the fault is recovered from before the next one: every supervisor (both agents, the
   decision node, the master) runs once, every node runs once where the mapping places it,
   every output has spoken since the fault ended, and the master lists a publisher for it;
@@ -29,23 +29,17 @@ import math
 from typing import Dict, List, Optional, Sequence, Set, Tuple
 
 from .fault_schedule import Fault
-from .testbed_figures import (handover_windows, record_end, silence_cause, silences_longer_than,
-                              tolerance_violations)
-from .testbed_record import TestbedRecord, Violation, mapping_at
+from .soak_silences import charged_to, silence_violations, worst_silence
+from .testbed_figures import handover_windows
+from .testbed_record import TestbedRecord, mapping_at
 
 # An instance cut off from the robot runs until its lease ends; its agent checks leases about
 # once a second and the census samples twice a second: this long on top of the lease.
 LEASE_GRACE_S = 2.0
 # A stretch of two instances or of a misplaced publisher that began this long before a fault
 # is the fault's, and so is the output silence reported as its worst: one period of AR's 1 Hz
-# minimum. (A silence's violation goes by its own limit: _owner.)
+# minimum. (A silence's violation goes by its own limit: soak_silences.charged_to.)
 FAULT_LEAD_S = 1.0
-# A critical connection (Δ 0) may never run below its freq_min: its topic silent for longer
-# than one period at freq_min is a violation, and on top of that period one period of the
-# robot's CPU quota (the cgroup's cfs_period_us, 100 ms on the test bed): a group at its quota
-# is held back that long at most, so a message due then comes that much late while the rate
-# is not below its minimum.
-CRITICAL_SLACK_S = 0.1
 SUPERVISORS = ("agent_robot", "agent_laptop", "decision", "master")
 
 
@@ -113,7 +107,7 @@ def judge_faults(faults: Sequence[InjectedFault], census: Sequence[CensusSample]
     for t, text in publisher_violations(rec, model):
         _charge(judged, t, text)
     for v, text in silence_violations(rec):
-        i = _charged_to([o.injected.t for o in judged], v)
+        i = charged_to([o.injected.t for o in judged], v)
         if i is not None:
             lag = v.start_t - judged[i].injected.t
             judged[i].violations.append(f"{text} (began {abs(lag):.2f} s "
@@ -121,84 +115,6 @@ def judge_faults(faults: Sequence[InjectedFault], census: Sequence[CensusSample]
     for o in judged:
         o.worst_silence = worst_silence(rec, o.injected.t - FAULT_LEAD_S, o.window_end)
     return outcomes
-
-
-def judged_end(rec: TestbedRecord) -> float:
-    """Where every silence is counted up to: the last message of any critical topic, not the
-    record's end. The run's teardown stops the sensors together some tenths of a second
-    before the monitor ends (0.63 s in the first CI soak; 0.68 s in the system test's run 2,
-    whose /ar_markers, last heard 0.51 s before, was judged silent 1.19 s > Δ 1 s): a tail no
-    fault made. A topic that stops alone is still counted to there. Without the critical
-    topics (no ~record_critical), the record's end."""
-    last = [ts[-1] for topic in rec.critical_freq_min
-            for ts in [sorted(rec.receipts.get(topic, []))] if ts]
-    return min(record_end(rec), max(last)) if last else record_end(rec)
-
-
-def critical_violations(rec: TestbedRecord) -> List[Violation]:
-    """Every silence of a critical connection's topic longer than a period at its freq_min
-    plus CRITICAL_SLACK_S (their Violation's tolerance_s is that limit), up to judged_end.
-    testbed_record's tolerance_violations leaves these out: an evaluation run records no
-    critical topic."""
-    end = judged_end(rec)
-    found = []
-    for topic, freq_min in sorted(rec.critical_freq_min.items()):
-        limit = 1.0 / freq_min + CRITICAL_SLACK_S
-        for a, b in silences_longer_than(rec.receipts.get(topic, []), limit, end):
-            found.append(Violation(topic, a, b, b - a, limit, silence_cause(rec, set(), a, b)))
-    return found
-
-
-def silence_violations(rec: TestbedRecord) -> List[Tuple[Violation, str]]:
-    """Every output silent longer than its Δ and every critical topic silent longer than its
-    limit (critical_violations), each with its words; tolerance_s is the limit."""
-    found = [(v, f"{v.topic} silent {_seconds(v.silence_s, v.tolerance_s)} s > Δ "
-                 f"{v.tolerance_s:g} s from t={v.start_t:.1f} s")
-             for v in tolerance_violations(rec, end=judged_end(rec))]
-    found += [(v, f"{v.topic} (critical, Δ 0) silent {_seconds(v.silence_s, v.tolerance_s)} s > "
-                  f"{_seconds(v.tolerance_s, v.silence_s)} s "
-                  f"(a period at its freq_min {rec.critical_freq_min[v.topic]:g} Hz + "
-                  f"{CRITICAL_SLACK_S:g} s) from t={v.start_t:.1f} s")
-              for v in critical_violations(rec)]
-    return found
-
-
-def _seconds(value: float, other: float) -> str:
-    """`value` to 2 decimals, or to as many more (up to 6) as it takes not to show it equal to
-    `other`: a silence 4 ms over its limit read "silent 0.20 s > 0.20 s"."""
-    digits = 2
-    while digits < 6 and f"{value:.{digits}f}" == f"{other:.{digits}f}":
-        digits += 1
-    return f"{value:.{digits}f}"
-
-
-def _charged_to(struck: Sequence[float], v: Violation) -> Optional[int]:
-    """Which of the faults struck at `struck` (in order) a silence is charged to: the last one
-    before the silence became a violation (its limit after its last message). A fault cannot
-    have made a silence that was already too long when it struck, whatever the topic's rate;
-    one that began within its limit before the fault may be the fault's (its last message came
-    just before). None before the first fault: the start-up's."""
-    before = [i for i, t in enumerate(struck) if t <= v.start_t + v.tolerance_s]
-    return before[-1] if before else None
-
-
-def startup_silences(faults: Sequence[InjectedFault], rec: TestbedRecord) -> List[str]:
-    """The silences that were violations before the first fault, in words: the start-up's (the
-    robot's node set coming up under its quota, the first moves), charged to no fault but
-    named, never passed by in silence."""
-    struck = sorted(f.t for f in faults if not f.error)
-    return [f"{text}: before the first fault (the start-up's, not judged as a fault's)"
-            for v, text in silence_violations(rec) if _charged_to(struck, v) is None]
-
-
-def unchecked(rec: TestbedRecord) -> List[str]:
-    """What the record lets no invariant check, in words: the soak says so rather than pass
-    it by."""
-    if not rec.critical_freq_min:
-        return ["the critical connections' Δ 0: the record has no receipts of their topics "
-                "(recorded by a monitor with ~record_critical, as bench_fault_soak.py starts "
-                "it)"]
-    return []
 
 
 def _charge(outcomes: Sequence[FaultOutcome], t: float, text: str):
@@ -384,23 +300,6 @@ def fixed_node_violations(census: Sequence[CensusSample], rec: TestbedRecord,
                 found.setdefault((node, "process"), (s.t, f"{node} ran on {away[0]} at "
                                                           f"t={s.t:.1f} s (it may not move)"))
     return sorted(found.values())
-
-
-def worst_silence(rec: TestbedRecord, since: float, until: float) -> Tuple[str, float, float]:
-    """The output silence, begun in [since, until), that is longest against its Δ:
-    (topic, silence, Δ); ("", 0, 0) if no output has a tolerance."""
-    best = ("", 0.0, 0.0)
-    for topic, tol in sorted(rec.tolerances.items()):
-        if tol <= 0:
-            continue
-        times = sorted(rec.receipts.get(topic, []))
-        points = times + [until]
-        for a, b in zip(points, points[1:]):
-            silence = min(b, until) - a
-            if since <= a < until and silence > 0 and \
-                    (not best[0] or silence / tol > best[1] / best[2]):
-                best = (topic, silence, tol)
-    return best
 
 
 def process_leak(census: Sequence[CensusSample], rec: TestbedRecord,

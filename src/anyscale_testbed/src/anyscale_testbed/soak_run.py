@@ -34,8 +34,8 @@ from .proc_census import processes_with_master
 from .soak_bed import Injector, Sampler, describe_state
 from .soak_growth import ResourceSample, growth, unjudged_growth
 from .soak_cpu import cpu_during, describe_cpu
-from .soak_invariants import (CensusSample, InjectedFault, SoakModel, judge_faults, process_leak,
-                              silence_violations, startup_silences, unchecked)
+from .soak_invariants import CensusSample, InjectedFault, SoakModel, judge_faults, process_leak
+from .soak_silences import silence_violations, startup_silences, unchecked
 from .soak_report import format_markdown, format_table, verdict_ok, write_csv
 from .testbed_record import TestbedRecord
 from .testbed_session import NamespaceBed, TestbedSession, layout_with_cpu

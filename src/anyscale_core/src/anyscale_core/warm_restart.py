@@ -35,7 +35,9 @@ from typing import Callable, List, Optional
 
 from .restart_backoff import BackoffParams, RestartBackoff
 
-STANDBY_COMM_PREFIX = "standby:"    # anyscale_agent_cpp's python_standby names its standbys so
+# The agents' standbys (anyscale_agent_cpp's python_standby) are named so too: a tool that looks
+# for a node's process (the test bed's census) skips them.
+STANDBY_COMM_PREFIX = "standby:"
 PR_SET_PDEATHSIG = 1
 PR_SET_NAME = 15
 PASSED_ON = (signal.SIGINT, signal.SIGTERM)

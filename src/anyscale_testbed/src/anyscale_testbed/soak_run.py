@@ -5,8 +5,9 @@ small loop, on the two-scale test bed, with AnyScale deciding, while a seeded sc
 
 The master runs as a roscore of its own (so that it can be killed and started again without
 ending the world launch; robot.launch's master keeper gives the new one what the old one
-held), and roslaunch restarts the agents and the decision node when they
-are killed (respawn:=true), as it would for a user who asks it to. The link is set through the
+held), and roslaunch restarts the agents when they are killed (respawn:=true), as it would for
+a user who asks it to; with it, robot.launch gives the decision node a warm standby of itself
+that forks it again at once (decision_node --warm-restart). The link is set through the
 link shaper's own functions (link_shaper.apply_setting), at the moment of each fault. While it
 runs, a thread samples /proc twice a second (soak_bed.Sampler). The monitor node records the
 outputs, the mapping, the events and the master's publishers as in every test-bed run, and the

@@ -1,7 +1,7 @@
 """PauseWatch on a scripted clock: a gap longer than its threshold is one pause, seen once."""
 import threading
 
-from anyscale_nav_demo.pause_watch import PauseWatch
+from anyscale_nav_demo.pause_watch import PauseWatch, ResumeStages
 
 
 class Clock:
@@ -41,3 +41,12 @@ def test_the_watch_thread_calls_back_for_a_pause_and_stops_when_asked():
     stop.set()
     t.join(2.0)
     assert seen == [5.0] and not t.is_alive()
+
+
+def test_resume_stages_keep_each_stages_first_time_in_the_order_reached():
+    stages = ResumeStages(100.0)
+    stages.mark("fresh scan", 100.4)
+    stages.mark("tf subscribed", 100.3)
+    stages.mark("fresh scan", 100.5)        # a later scan: the stage was reached at 100.4
+    stages.mark("first pose", 101.25)
+    assert stages.summary() == "tf subscribed +0.30 s, fresh scan +0.40 s, first pose +1.25 s"

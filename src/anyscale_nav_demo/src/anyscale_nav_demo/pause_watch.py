@@ -35,3 +35,21 @@ class PauseWatch:
         while running():
             time.sleep(period_s)
             self.check()
+
+
+class ResumeStages:
+    """When each stage of a node's return to work after a pause was first reached, as offsets
+    from the resume, for one log line once the first output is out. A return that broke a
+    tolerance left only its start and its end in the logs, not where the time between went."""
+
+    def __init__(self, resumed_at: float):
+        self.resumed_at = resumed_at
+        self.reached = {}           # stage -> seconds after the resume, first time only
+
+    def mark(self, stage: str, t: float):
+        self.reached.setdefault(stage, t - self.resumed_at)
+
+    def summary(self) -> str:
+        """'tf +0.31 s, fresh scan +0.40 s, ...' in the order the stages were reached."""
+        return ", ".join("%s +%.2f s" % (stage, dt)
+                         for stage, dt in sorted(self.reached.items(), key=lambda kv: kv[1]))

@@ -59,6 +59,15 @@ class AmclLateOdometry(unittest.TestCase):
             rospy.sleep(0.4)
         self.assertGreaterEqual(len(poses), 3, "%d poses for %d scans whose odometry came %.2f s "
                                 "after them" % (len(poses), scans, ODOM_LATE_S))
+        # The estimate is saved for the next instance (a move's hand-over reads it), off the
+        # scan's path: it appears on the parameter server by itself.
+        deadline = rospy.get_time() + 5.0
+        while rospy.get_param("/amcl/initial_pose_stamp", 0.0) <= 0.0 and \
+                rospy.get_time() < deadline:
+            rospy.sleep(0.1)
+        saved = rospy.get_param("/amcl/initial_pose_stamp", 0.0)
+        self.assertIn(saved, [p.header.stamp.to_sec() for p in poses],
+                      "~initial_pose_stamp %.3f is not the stamp of a published pose" % saved)
 
 
 if __name__ == "__main__":

@@ -3,6 +3,10 @@
 No ROS: the write function is given. AMCL saves its estimate to its ~initial_pose_* parameters
 every 2 s, seven parameter-server calls; on the robot's quota those took 0.08 s (median; up to
 0.31 s) between the first and the last reaching the master, and the next scan waited for them.
+
+anyscale_core.agent_client.Worker does the same for the decision node (a keyed job replaces a
+pending one), but it lives with the agents' service calls and logs as the decision node; it
+should move to a ROS-free module of its own that both use (not done yet).
 """
 import threading
 from typing import Any, Callable, Optional

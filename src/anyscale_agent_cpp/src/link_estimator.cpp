@@ -1,8 +1,6 @@
 // RTT, loss and bandwidth estimation from probe send/answer times.
 #include "anyscale_agent_cpp/link_estimator.h"
 
-#include "anyscale_agent_cpp/icmp_echo.h"
-
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -26,7 +24,6 @@ LinkEstimator::LinkEstimator(double timeout_s, std::size_t history, double bandw
   , last_answer_t_(kNaN)
   , bandwidth_mbps_(kNaN)
   , unconfirmed_drop_(kNaN)
-  , unverified_rise_(kNaN)
 {
 }
 
@@ -103,32 +100,6 @@ void LinkEstimator::addBandwidthReading(double mbps)
   }
 }
 
-std::size_t LinkEstimator::echoBytes(std::size_t max_bytes) const
-{
-  // A reading awaiting its check is checked with the echo it calls for.
-  return echoBulkBytes(std::isnan(unverified_rise_) ? bandwidth_mbps_ : unverified_rise_, max_bytes);
-}
-
-void LinkEstimator::addEchoReading(double mbps, std::size_t bytes, std::size_t max_bytes)
-{
-  if (std::isnan(mbps))
-    return;
-  if (!std::isnan(unverified_rise_))
-  {
-    // This echo was sized for the higher reading (echoBytes): the lower of the two counts. A
-    // 4 KiB echo that read a 3 Mbit/s link as 60 meets a 32 KiB one that the link did not carry.
-    mbps = std::min(mbps, unverified_rise_);
-    unverified_rise_ = kNaN;
-  }
-  else if ((std::isnan(bandwidth_mbps_) || mbps > bandwidth_mbps_) && 2 * bytes < echoBulkBytes(mbps, max_bytes))
-  {
-    // Over in less than 10 ms at the rate it read: a shaper's burst can pass that whole.
-    unverified_rise_ = mbps;
-    return;
-  }
-  addBandwidthReading(mbps);
-}
-
 void LinkEstimator::expire(double now)
 {
   for (auto it = pending_.begin(); it != pending_.end();)
@@ -162,7 +133,7 @@ LinkSample LinkEstimator::stats(double now)
   // A link that was lost has shown nothing since: the estimate from before the loss (another
   // place, another access point) must not stand for it until the next bulk probe answers.
   if (!s.up)
-    bandwidth_mbps_ = unconfirmed_drop_ = unverified_rise_ = kNaN;
+    bandwidth_mbps_ = unconfirmed_drop_ = kNaN;
   s.bandwidth_mbps = bandwidth_mbps_;
   double sum = 0.0;
   std::size_t answered = 0;

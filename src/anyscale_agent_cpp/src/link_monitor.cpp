@@ -157,12 +157,11 @@ void LinkMonitor::measureByEcho()
   std::unique_lock<std::mutex> lock(mutex_);
   while (!stopping_)
   {
-    // A lower reading is confirmed, and a higher one from too small an echo checked, at the next
-    // probe period, not a bulk period later.
+    // A lower reading is confirmed at the next probe period, not a bulk period later.
     const double wait_s = estimator_.confirmationWanted() ? options_.probe_period_s : options_.bulk_period_s;
     if (wake_icmp_.wait_for(lock, std::chrono::duration<double>(wait_s), [this] { return stopping_; }))
       break;
-    const std::size_t bytes = estimator_.echoBytes(std::size_t(options_.bulk_bytes));
+    const std::size_t bytes = echoBulkBytes(estimator_.bandwidthMbps(), std::size_t(options_.bulk_bytes));
     lock.unlock();
     double mbps = std::numeric_limits<double>::quiet_NaN();
     try
@@ -178,7 +177,7 @@ void LinkMonitor::measureByEcho()
       ROS_WARN_THROTTLE(60.0, "link bandwidth: %s", e.what());
     }
     lock.lock();
-    estimator_.addEchoReading(mbps, bytes, std::size_t(options_.bulk_bytes));
+    estimator_.addBandwidthReading(mbps);
   }
 }
 

@@ -37,15 +37,6 @@ struct LinkSample
 // A higher reading is blended in with `bandwidth_smoothing` (the weight of the new value); a
 // lower one is confirmed first: the next bulk probe goes out at once (confirmationWanted) and the
 // estimate falls to the higher of the two readings (or to the first, if the second is lost).
-//
-// An ICMP echo is sized from the estimate (echoBulkBytes: ~20 ms of it, 4 KiB at least), and a
-// shaper's token bucket passes its first bytes at line rate (tc tbf burst 32kbit: 4000 bytes).
-// After a fall the echo is 4 KiB, which such a bucket passes almost whole: a 3 Mbit/s link read
-// ~60 Mbit/s, believed at once, and the estimate swung between ~1 and ~30 Mbit/s (fault soak,
-// step 27 -> 3 Mbit/s: a restarted decision node's bandwidth hold saw only the high phase and
-// moved AR out onto the 3 Mbit/s link). So a higher reading from an echo less than half the
-// size that reading calls for is not believed yet: the next echo, of that size, goes out at once
-// (confirmationWanted, echoBytes) and the lower of the two readings counts (addEchoReading).
 enum class ProbeKind
 {
   kSmall,   // RTT and loss
@@ -65,16 +56,11 @@ public:
   ProbeKind answered(uint32_t seq, double t);
   // A bandwidth reading from elsewhere (an ICMP echo); NaN is ignored.
   void addBandwidthReading(double mbps);
-  // The ICMP echo's loop (LinkMonitor::measureByEcho): the size of the next bulk echo (at most
-  // max_bytes), and the reading an echo of `bytes` gave (NaN: the small echo went unanswered).
-  std::size_t echoBytes(std::size_t max_bytes) const;
-  void addEchoReading(double mbps, std::size_t bytes, std::size_t max_bytes);
   double bandwidthMbps() const { return bandwidth_mbps_; }  // NaN until measured
   LinkSample stats(double now);
   bool outstanding() const { return !pending_.empty(); }
-  // A lower bandwidth reading awaits a second bulk probe before the estimate follows it, and a
-  // higher one from too small an echo a check (addEchoReading).
-  bool confirmationWanted() const { return !std::isnan(unconfirmed_drop_) || !std::isnan(unverified_rise_); }
+  // A lower bandwidth reading awaits a second bulk probe before the estimate follows it.
+  bool confirmationWanted() const { return !std::isnan(unconfirmed_drop_); }
 
 private:
   void expire(double now);
@@ -95,7 +81,6 @@ private:
   double last_answer_t_;
   double bandwidth_mbps_;
   double unconfirmed_drop_;  // a lower reading not yet confirmed; NaN if none
-  double unverified_rise_;   // a higher reading from an echo too small for it; NaN if none
 };
 
 }  // namespace anyscale_agent

@@ -18,8 +18,9 @@ import pytest
 from anyscale_testbed import fault_schedule as fs
 from anyscale_testbed.soak_invariants import (CensusSample, InjectedFault, fixed_node_violations,
                                               instance_violations, judge_faults,
-                                              publisher_violations, unchecked)
+                                              publisher_violations)
 from anyscale_testbed.soak_run import soak_model
+from anyscale_testbed.soak_silences import unchecked
 from anyscale_testbed.testbed_record import TestbedRecord
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "..", ".."))

@@ -40,9 +40,9 @@ TopicWatcher::TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, 
   nh_.setCallbackQueue(&inline_queue_);
 }
 
-bool TopicWatcher::setWatched(const std::vector<std::string>& topics, std::string* error)
+bool TopicWatcher::setWatched(const std::vector<std::string>& topics, const std::vector<std::string>& subscribers,
+                              std::string* error)
 {
-  std::vector<std::string> resolved;
   for (const auto& t : topics)
   {
     std::string why;
@@ -53,25 +53,31 @@ bool TopicWatcher::setWatched(const std::vector<std::string>& topics, std::strin
                  (why.empty() ? "" : ": " + quoted(why, 200));
       return false;
     }
-    resolved.push_back(t);
+  }
+  for (const auto& n : subscribers)
+  {
+    std::string why;
+    if (!n.empty() && (n[0] != '/' || !ros::names::validate(n, why)))
+    {
+      if (error)
+        *error = "subscriber " + quoted(n) + " is not a fully qualified node name (e.g. /amcl) or \"\"" +
+                 (why.empty() ? "" : ": " + quoted(why, 200));
+      return false;
+    }
   }
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    watched_ = resolved;
+    if (!watched_.assign(topics, subscribers, error))
+      return false;
   }
-  std::set<std::string> local;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    local = local_topics_;
-  }
-  update(local);
+  apply();
   return true;
 }
 
 std::vector<std::string> TopicWatcher::watched() const
 {
   std::lock_guard<std::mutex> lock(mutex_);
-  return watched_;
+  return watched_.topics();
 }
 
 void TopicWatcher::subscribe(const std::string& topic, const std::shared_ptr<Counter>& c)
@@ -104,15 +110,37 @@ void TopicWatcher::subscribe(const std::string& topic, const std::shared_ptr<Cou
 
 void TopicWatcher::update(const std::set<std::string>& local_topics)
 {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    local_topics_ = local_topics;
+  }
+  apply();
+}
+
+void TopicWatcher::setRunning(const std::set<std::string>& running, const std::function<bool()>& may_call_master)
+{
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    running_ = running;
+    const std::set<std::string> wanted = watched_.toCount(local_topics_, running_, watch_all_);
+    bool same = wanted.size() == counters_.size();
+    for (auto it = wanted.begin(); same && it != wanted.end(); ++it)
+      same = counters_.count(*it) > 0;
+    if (same)
+      return;
+  }
+  // roscpp's subscribe and unsubscribe call the master and retry until it answers.
+  if (may_call_master())
+    apply();
+}
+
+void TopicWatcher::apply()
+{
   std::lock_guard<std::mutex> subscribing(subscribing_);
   std::map<std::string, std::shared_ptr<Counter>> dropped, added;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    local_topics_ = local_topics;
-    std::set<std::string> wanted;
-    for (const auto& t : watched_)
-      if (watch_all_ || local_topics.count(t))
-        wanted.insert(t);
+    const std::set<std::string> wanted = watched_.toCount(local_topics_, running_, watch_all_);
     for (auto it = counters_.begin(); it != counters_.end();)
     {
       if (!wanted.count(it->first))

@@ -216,18 +216,18 @@ class AgentActions:
             lists = conv.watched_topics(self.model, self.engine.mapping())
             seen = set(self.reports)
         now = time.monotonic()
-        for scale, topics in lists.items():
+        for scale, watched in lists.items():
             last = self.watch_sent.get(scale)
-            if scale not in seen or (not force and last and last[0] == topics and
+            if scale not in seen or (not force and last and last[0] == watched and
                                      now - last[1] < WATCH_RESEND_S):
                 continue
-            self.watch_sent[scale] = (topics, now)
-            self.scale_workers[scale].submit(lambda s=scale, t=topics: self._set_watched(s, t),
+            self.watch_sent[scale] = (watched, now)
+            self.scale_workers[scale].submit(lambda s=scale, w=watched: self._set_watched(s, w),
                                              key="watch")
 
-    def _set_watched(self, scale, topics):
+    def _set_watched(self, scale, watched):
         try:
-            self.agents.set_watched(scale, topics)
+            self.agents.set_watched(scale, [t for t, _ in watched], [n for _, n in watched])
             failure = None
         except Exception as e:  # noqa: BLE001 - retried at the next resend
             self.watch_sent.pop(scale, None)

@@ -83,8 +83,9 @@ class AgentClient:
         return self.call(scale, "renew_leases", min(self.timeout_s, lease_s), nodes=list(nodes),
                          lease_s=lease_s)
 
-    def set_watched(self, scale, topics):
-        return self.call(scale, "set_watched_topics", topics=list(topics))
+    def set_watched(self, scale, topics, subscribers=()):
+        return self.call(scale, "set_watched_topics", topics=list(topics),
+                         subscribers=list(subscribers))
 
 
 def registered_pid(node: str, caller_id: str, timeout_s: float = 1.0) -> Optional[int]:

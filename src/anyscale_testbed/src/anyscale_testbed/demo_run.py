@@ -134,6 +134,13 @@ def parse_args(argv, default_out: str):
                         "1.77 Hz over 7 runs as the workload took 11.8-16.5 ms. The quotas and "
                         "the workload's ms go in the record (cpu_normalisation). Off by "
                         "default; not yet validated on runs")
+    p.add_argument("--record-inputs", default="", metavar="TOPICS",
+                   help="comma-separated topics whose receipts the record keeps too, e.g. "
+                        "/scan,/odom,/odometry/filtered: each tolerance violation's cause then "
+                        "gives their longest gaps, so a node starved of its inputs is told from "
+                        "one slow on them. Each is one more subscriber that the robot's "
+                        "publishers serve on the robot's quota; never name a heavy stream (the "
+                        "camera) (default: none)")
     p.add_argument("--allocator", default="paper", help="paper (default), paper_local, optimal")
     p.add_argument("--hysteresis", type=float, default=10.0, help="the paper's T in s (10)")
     p.add_argument("--hold-after-loss", type=float, default=None, metavar="S",
@@ -158,6 +165,10 @@ def parse_args(argv, default_out: str):
         p.error(f"--seed: expected an integer >= 0, got {args.seed}")
     if args.seed and args.link != "coverage":
         p.error("--seed varies the coverage model: it needs --link coverage")
+    args.record_inputs = [t.strip() for t in args.record_inputs.split(",") if t.strip()]
+    bad = [t for t in args.record_inputs if not t.startswith("/") or " " in t]
+    if bad:
+        p.error(f"--record-inputs: expected resolved topic names such as /scan, got {bad[0]!r}")
     return args
 
 
@@ -258,7 +269,8 @@ def launch_demo(session: TestbedSession, bed, args, model: str, start, goals, re
             f"seed:={args.seed}",
             f"record_path:={record}", f"results_dir:={os.path.join(run_dir, 'nav')}",
             f"duration_s:={args.duration}", f"rviz:={str(args.rviz).lower()}",
-            f"record_critical:={str(record_critical).lower()}"],
+            f"record_critical:={str(record_critical).lower()}",
+            f"record_inputs:={json.dumps(args.record_inputs)}"],
         cpu_quota=False, wait_for_master=master_running, echo=echo or echo_monitor_lines)
     # The world launch runs the simulator and the recorder outside the robot's quota.
     session.roslaunch("robot", "robot", [

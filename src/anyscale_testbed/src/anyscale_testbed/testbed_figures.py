@@ -224,7 +224,22 @@ def silence_cause(rec: TestbedRecord, nodes, start: float, end: float,
                                              f"{', '.join(sorted(nodes)) or 'its publisher'}"]
     if ran_to_end:
         words.append("silent until the run ended")
+    inputs = input_gaps(rec, start, end)
+    if inputs:
+        words.append(inputs)
     return "; ".join(words)
+
+
+def input_gaps(rec: TestbedRecord, start: float, end: float) -> str:
+    """The longest gap of each recorded input (rec.inputs) from `start` to `end`, in words:
+    whether a silent node was starved of its inputs or slow on them. "" if none is recorded."""
+    parts = []
+    for topic in rec.inputs:
+        times = sorted(t for t in rec.receipts.get(topic, []) if start <= t <= end)
+        points = [start] + times + [end]
+        gap, at = max((b - a, a) for a, b in zip(points, points[1:]))
+        parts.append(f"{topic} {gap:.2f} s" + (f" from t={at:.1f} s" if gap > 0.5 else ""))
+    return ("longest input gaps at the monitor: " + ", ".join(parts)) if parts else ""
 
 
 # The word that marks a violation in the end table: plain in a log file, and red where the

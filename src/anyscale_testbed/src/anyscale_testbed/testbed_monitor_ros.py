@@ -129,6 +129,20 @@ class TestbedMonitor:
             self.rec.senders[topic] = []
             rospy.Subscriber(topic, rospy.AnyMsg, self._on_output, callback_args=topic,
                              queue_size=50)
+        # Inputs of the moving nodes (and of what feeds them): a silence of an output is then
+        # told apart from a stall of its inputs. Off by default: each is one more subscriber
+        # that the robot's publishers serve on the robot's quota. Never a heavy stream: it
+        # would cross the robot's link to reach this recorder.
+        inputs = rospy.get_param("~record_inputs", [])
+        if not isinstance(inputs, list) or not all(isinstance(t, str) and t.startswith("/")
+                                                   for t in inputs):
+            raise SystemExit("testbed_monitor: ~record_inputs must be a list of resolved topic "
+                             f"names such as [/scan, /odom], got {inputs!r}")
+        self.rec.inputs = [t for t in dict.fromkeys(inputs) if t not in self.rec.receipts]
+        for topic in self.rec.inputs:
+            self.rec.receipts[topic] = []
+            rospy.Subscriber(topic, rospy.AnyMsg, self._on_input, callback_args=topic,
+                             queue_size=100)
         rospy.Subscriber("/anyscale/mapping", MappingMsg, self._on_mapping, queue_size=5)
         rospy.Subscriber("/anyscale/events", MigrationEvent, self._on_event, queue_size=50)
         rospy.Subscriber("/anyscale/wifi/bandwidth_mbps", Float32, self._on_bandwidth,
@@ -143,6 +157,11 @@ class TestbedMonitor:
         return time.time() - self.rec.started_wall
 
     # --- callbacks ------------------------------------------------------------------------------
+    def _on_input(self, _msg, topic):
+        now = self.now()
+        with self.lock:
+            self.rec.receipts[topic].append(now)
+
     def _on_output(self, msg, topic):
         now = self.now()
         # rospy puts the sending connection's header on each message it delivers.

@@ -75,6 +75,9 @@ class TestbedRecord:
     # calibration's reference_cpu_ms. Empty / None: the quotas stayed the calibrated ones.
     cpu_normalisation: List[Tuple[float, float, float, float]] = field(default_factory=list)
     reference_cpu_ms: Optional[float] = None
+    # Inputs of the moving nodes whose receipts are in `receipts` too (the monitor's
+    # ~record_inputs): a silence's cause then says whether they kept coming.
+    inputs: List[str] = field(default_factory=list)
 
     def save(self, path: str):
         with open(path, "w") as f:

@@ -138,8 +138,10 @@ class TestbedMonitor:
                                                    for t in inputs):
             raise SystemExit("testbed_monitor: ~record_inputs must be a list of resolved topic "
                              f"names such as [/scan, /odom], got {inputs!r}")
-        self.rec.inputs = [t for t in dict.fromkeys(inputs) if t not in self.rec.receipts]
+        self.rec.inputs = list(dict.fromkeys(inputs))
         for topic in self.rec.inputs:
+            if topic in self.rec.receipts:
+                continue                    # recorded already (an output)
             self.rec.receipts[topic] = []
             rospy.Subscriber(topic, rospy.AnyMsg, self._on_input, callback_args=topic,
                              queue_size=100)

@@ -162,7 +162,8 @@ class DecisionNode(AgentActions):
         self.scale_workers = {s: Worker(f"anyscale_{s}") for s in self.ch.scale_names}
         self.call_failures = CallFailures()
         self.handing_over = set()             # nodes whose old and new instance both run
-        self.pausing = set()                  # instance names paused at our request
+        # instance paused at our request -> (its scale, when the pause was acknowledged)
+        self.pausing = {}
         self.registrations = Worker("anyscale_registrations")
         self.caller_id = rospy.get_name()
         rospy.set_param("/anyscale/model", os.path.abspath(params.model))  # `anyscale top`

@@ -1,5 +1,4 @@
 """Calls to the agents' services with timeouts, off the decision loop's thread."""
-import collections
 import threading
 import time
 import xmlrpc.client
@@ -11,6 +10,7 @@ from anyscale_msgs.srv import (ListNodes, RenewLeases, SetWatchedTopics, StartNo
                                StopNode)
 
 from . import xmlrpc_calls
+from .job_worker import JobWorker
 from .service_lookup import RememberingServiceProxy, ServiceUris
 
 
@@ -129,37 +129,15 @@ class CallFailures:
         return self._failing.pop(key, 0)
 
 
-class Worker:
-    """A thread that runs queued jobs in order. Keyed jobs replace a pending job of the same
-    key (only the latest lease renewal or watch list of a scale matters)."""
+def _log_failed_job(e: Exception, key) -> None:
+    rospy.logerr("anyscale decision: %s", e)
+
+
+class Worker(JobWorker):
+    """The decision node's job thread (one per node, per scale, and for the registrations):
+    a JobWorker whose failed jobs are logged as the decision node's errors. Keyed jobs replace
+    a pending job of the same key (only the latest lease renewal or watch list of a scale
+    matters)."""
 
     def __init__(self, name: str):
-        self._jobs = collections.OrderedDict()
-        self._cond = threading.Condition()
-        self._seq = 0
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
-        self._thread.start()
-
-    def submit(self, job: Callable[[], None], key=None):
-        with self._cond:
-            if key is None:
-                self._seq += 1
-                key = ("seq", self._seq)
-            self._jobs.pop(key, None)
-            self._jobs[key] = job
-            self._cond.notify()
-
-    def pending(self) -> int:
-        with self._cond:
-            return len(self._jobs)
-
-    def _run(self):
-        while True:
-            with self._cond:
-                while not self._jobs:
-                    self._cond.wait()
-                _, job = self._jobs.popitem(last=False)
-            try:
-                job()
-            except Exception as e:  # noqa: BLE001 - one failed job must not end the worker
-                rospy.logerr("anyscale decision: %s", e)
+        super().__init__(name, on_error=_log_failed_job)

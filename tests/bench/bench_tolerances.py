@@ -65,7 +65,7 @@ def parse_args(argv):
                         "host's speed, so that every run's robot is as fast as the calibrated "
                         "one (this shared VM's speed drifts: AMCL with every node home ran "
                         "3.18-1.77 Hz in 7 runs at the same quota); see run_testbed.py --help. "
-                        "Off by default; not yet validated on runs")
+                        "Off by default; its first validation cut the robot by 40 %%: see the anyscale_testbed README")
     p.add_argument("--record-inputs", default=DEFAULT_INPUTS, metavar="TOPICS",
                    help="run_testbed.py --record-inputs: the inputs whose gaps each violation's "
                         f"cause names (default: {DEFAULT_INPUTS}, the small topics that feed AMCL; "

@@ -63,3 +63,11 @@ def test_the_tolerance_bench_records_the_inputs_of_amcl_unless_told_not_to(toler
     assert argv[argv.index("--record-inputs") + 1] == "/scan,/joint_states,/odom,/odometry/filtered"
     argv = tolerances.run_argv(tolerances.parse_args(["--record-inputs", ""]), 0, 11, "out/run01")
     assert "--record-inputs" not in argv
+
+
+@pytest.mark.parametrize("bench", ["bench_tolerances", "bench_premise"])
+def test_the_benches_help_prints_and_exits_0(bench, capsys):
+    with pytest.raises(SystemExit) as ended:
+        load_bench(bench).parse_args(["--help"])
+    assert ended.value.code == 0
+    assert "--normalise-cpu" in capsys.readouterr().out

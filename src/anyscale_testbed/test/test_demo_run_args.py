@@ -74,3 +74,10 @@ def test_record_inputs_are_a_list_of_topics_and_a_bad_one_is_one_line(capsys):
     assert ended.value.code == 2
     assert "--record-inputs: expected resolved topic names such as /scan, got 'odom'" in \
         capsys.readouterr().err
+
+
+def test_help_prints_and_exits_0(capsys):
+    with pytest.raises(SystemExit) as ended:
+        parse_args(["--help"], "out")
+    assert ended.value.code == 0
+    assert "--record-inputs" in capsys.readouterr().out

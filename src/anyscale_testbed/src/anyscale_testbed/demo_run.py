@@ -133,7 +133,7 @@ def parse_args(argv, default_out: str):
                         "drifts; at the same 0.34 cores AMCL with every node home ran 3.18 to "
                         "1.77 Hz over 7 runs as the workload took 11.8-16.5 ms. The quotas and "
                         "the workload's ms go in the record (cpu_normalisation). Off by "
-                        "default; not yet validated on runs")
+                        "default; its first validation cut the robot by 40 %%: see the anyscale_testbed README")
     p.add_argument("--record-inputs", default="", metavar="TOPICS",
                    help="comma-separated topics whose receipts the record keeps too, e.g. "
                         "/scan,/odom,/odometry/filtered: each tolerance violation's cause then "

@@ -157,6 +157,26 @@ void TopicWatcher::apply()
       if (!counters_.count(t))
         added[t] = counters_[t] = std::make_shared<Counter>(window_s_);
   }
+  // Counters come and go with moves, a few times a run: each change is logged with what it was
+  // based on. (A counter dropped while its node still ran here once made the decision node
+  // bring AMCL and AR home from a 27 Mbit/s link; the log could not say why.)
+  if (!dropped.empty() || !added.empty())
+  {
+    std::string graph, running;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      for (const auto& t : local_topics_)
+        graph += (graph.empty() ? "" : " ") + t;
+      for (const auto& n : running_)
+        running += (running.empty() ? "" : " ") + n;
+    }
+    for (const auto& entry : dropped)
+      ROS_INFO("topic counter: stopped counting %s (subscribed here by the graph: [%s]; nodes run here: [%s])",
+               entry.first.c_str(), graph.c_str(), running.c_str());
+    for (const auto& entry : added)
+      ROS_INFO("topic counter: counting %s (subscribed here by the graph: [%s]; nodes run here: [%s])",
+               entry.first.c_str(), graph.c_str(), running.c_str());
+  }
   for (auto& [topic, c] : dropped)
     c->sub.shutdown();
   for (auto& [topic, c] : added)
@@ -180,6 +200,12 @@ void TopicWatcher::renewSilent(double now, double silent_s, const std::function<
     return;
   for (auto& [topic, c] : silent)
   {
+    {
+      // Once per silence: a topic whose publisher stopped is subscribed again every silent_s.
+      std::lock_guard<std::mutex> counter_lock(c->mutex);
+      if (c->last_seen >= c->subscribed_at)
+        ROS_INFO("topic counter: nothing on %s for %.1f s: subscribing again", topic.c_str(), now - c->last_seen);
+    }
     // Released first: roscpp keeps one subscription per topic, and a new subscriber beside the
     // old one would only share its dead connection.
     c->sub.shutdown();

@@ -22,8 +22,8 @@ make -C build -j1 run_tests > "$logs/run_tests.log" 2>&1 \
   || { status=1; tail -n 40 "$logs/run_tests.log"; }
 
 echo "== pytest"
-/usr/bin/python3 -m pytest -q -p no:cacheprovider --junitxml="$results/pytest/pytest.xml" \
-  src tests 2>&1 | tee "$logs/pytest.log" | tail -n 25
+/usr/bin/python3 -m pytest -q -p no:cacheprovider --durations=15 --junitxml="$results/pytest/pytest.xml" \
+  src tests 2>&1 | tee "$logs/pytest.log" | tail -n 45
 rc=${PIPESTATUS[0]}
 # exit 5: nothing collected, not a failure in itself
 [ "$rc" -eq 0 ] || [ "$rc" -eq 5 ] || status=1

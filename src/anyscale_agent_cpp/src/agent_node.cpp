@@ -23,6 +23,7 @@ namespace
 // runs at 1 Hz or more (freq_min), so 3 s of nothing while its publisher runs is a dead
 // connection; where the publisher is gone, the renewal costs a call to the master.
 constexpr double kRenewCountersSilentS = 3.0;
+constexpr double kSlowGraphPassS = 3.0;
 
 template <typename T>
 T param(const ros::NodeHandle& pnh, const std::string& name, const T& fallback)
@@ -112,7 +113,7 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
                                            param(pnh_, "watch_all", false),
                                            [this](const std::string& publisher) { endBoostAtOutput(publisher); });
   std::string error;
-  if (!topics_->setWatched(param(pnh_, "watched_topics", std::vector<std::string>{}), &error))
+  if (!topics_->setWatched(param(pnh_, "watched_topics", std::vector<std::string>{}), {}, &error))
     throw std::runtime_error("parameter ~watched_topics: " + error);
 
   LinkOptions link;
@@ -126,6 +127,8 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   link_ = std::make_unique<LinkMonitor>(
       nh_, scale_, is_master_, param<std::string>(pnh_, "master_scale", ""), link,
       [this](double now, const std::function<bool()>& may_call_master) {
+        // Here, not in the graph thread: that one waits on every master query in turn.
+        topics_->setRunning(runningNodes(), may_call_master);
         topics_->renewSilent(now, kRenewCountersSilentS, may_call_master);
       });
 
@@ -227,7 +230,29 @@ void AgentNode::onSupervise(const ros::SteadyTimerEvent&)
   keepStandbysReady();
 }
 
+std::set<std::string> AgentNode::runningNodes() const
+{
+  std::set<std::string> out;
+  for (const auto& p : supervisor_.snapshot())
+    if (p.pid != 0 && p.state != ProcState::Standby)
+      out.insert(p.name);
+  return out;
+}
+
 void AgentNode::onGraph(const ros::SteadyTimerEvent&)
+{
+  const double began = steadyNow();
+  onGraphQueries();
+  // Every question here is a call to the master (over the link, from a remote scale), one
+  // after another. How long a pass can take was unknown when the counters depended on it;
+  // logged so that a slow master shows in the agent's log.
+  const double took = steadyNow() - began;
+  if (took >= kSlowGraphPassS)
+    ROS_WARN("the master's graph took %.1f s to read (registrations, subscribers on this scale); "
+             "the inputs of the nodes run here are counted without it", took);
+}
+
+void AgentNode::onGraphQueries()
 {
   std::set<std::string> own;
   for (const auto& p : supervisor_.snapshot())

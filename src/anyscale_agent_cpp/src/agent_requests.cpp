@@ -2,6 +2,8 @@
 // every refusal (an attacker on the network is seen by the node name it gives).
 #include "anyscale_agent_cpp/agent_node.h"
 
+#include <algorithm>
+
 #include "anyscale_agent_cpp/request_check.h"
 
 namespace anyscale_agent
@@ -58,14 +60,14 @@ void AgentNode::setWatched(const anyscale_msgs::SetWatchedTopics::Request& req,
                            anyscale_msgs::SetWatchedTopics::Response& res)
 {
   res.success = false;
-  if (req.topics.size() > kMaxWatchedTopics)
+  if (req.topics.size() > kMaxWatchedTopics || req.subscribers.size() > kMaxWatchedTopics)
   {
-    res.message = "refused: " + std::to_string(req.topics.size()) + " topics, at most " +
-                  std::to_string(kMaxWatchedTopics) + " may be watched";
+    res.message = "refused: " + std::to_string(std::max(req.topics.size(), req.subscribers.size())) +
+                  " topics or subscribers, at most " + std::to_string(kMaxWatchedTopics) + " may be watched";
     return;
   }
   std::string error;
-  res.success = topics_->setWatched(req.topics, &error);
+  res.success = topics_->setWatched(req.topics, req.subscribers, &error);
   res.message = res.success ? "watching " + std::to_string(req.topics.size()) + " topics where a local node subscribes"
                             : "refused: " + error;
 }

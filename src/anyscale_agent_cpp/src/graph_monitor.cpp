@@ -6,8 +6,6 @@
 #include <ros/network.h>
 #include <ros/this_node.h>
 
-#include <map>
-
 namespace anyscale_agent
 {
 
@@ -58,66 +56,50 @@ std::optional<GraphMonitor::Registration> GraphMonitor::lookup(const std::string
   return r;
 }
 
-bool GraphMonitor::inSystemState(const std::string& node) const
+std::optional<SystemState> GraphMonitor::systemState() const
 {
   XmlRpc::XmlRpcValue args, result, payload;
   args[0] = ros::this_node::getName();
   if (!ros::master::execute("getSystemState", args, result, payload, false) ||
       payload.getType() != XmlRpc::XmlRpcValue::TypeArray || payload.size() < 3)
-    return true;
+    return std::nullopt;
   // payload: [publishers, subscribers, services], each a list of [name, [node, ...]].
+  SystemState state;
+  SystemState::Table* tables[] = { &state.publishers, &state.subscribers, &state.services };
   for (int kind = 0; kind < 3; ++kind)
     for (int i = 0; i < payload[kind].size(); ++i)
+    {
+      std::vector<std::string> nodes;
       for (int j = 0; j < payload[kind][i][1].size(); ++j)
-        if (std::string(payload[kind][i][1][j]) == node)
-          return true;
-  return false;
+        nodes.push_back(std::string(payload[kind][i][1][j]));
+      tables[kind]->emplace_back(std::string(payload[kind][i][0]), std::move(nodes));
+    }
+  return state;
+}
+
+bool GraphMonitor::inSystemState(const std::string& node) const
+{
+  const auto state = systemState();
+  // A master that does not list this agent either (restarted, not yet restored) cannot tell.
+  return !state || listsNode(*state, node) || !knowsAgent(*state, ros::this_node::getName());
 }
 
 std::optional<std::set<std::string>> GraphMonitor::localSubscribedTopics(const std::set<std::string>& own_nodes) const
 {
-  XmlRpc::XmlRpcValue args, result, payload;
-  args[0] = ros::this_node::getName();
-  if (!ros::master::execute("getSystemState", args, result, payload, false) ||
-      payload.getType() != XmlRpc::XmlRpcValue::TypeArray || payload.size() < 2)
+  const auto state = systemState();
+  if (!state)
     return std::nullopt;
-  std::set<std::string> topics;
-  std::map<std::string, bool> is_local;  // per node, asked once per call
-  const std::string self = ros::this_node::getName();
-  XmlRpc::XmlRpcValue& subscribers = payload[1];
-  for (int i = 0; i < subscribers.size(); ++i)
-  {
-    const std::string topic = subscribers[i][0];
-    XmlRpc::XmlRpcValue& nodes = subscribers[i][1];
-    for (int j = 0; j < nodes.size(); ++j)
-    {
-      const std::string node = nodes[j];
-      if (node == self)
-        continue;  // our own counter does not make a topic local
-      auto it = is_local.find(node);
-      if (it == is_local.end())
-      {
-        bool local = own_nodes.count(node) > 0;
-        if (!local)
-        {
-          XmlRpc::XmlRpcValue a, r, p;
-          a[0] = self;
-          a[1] = node;
-          std::string host;
-          int port = 0;
-          local = ros::master::execute("lookupNode", a, r, p, false) && p.getType() == XmlRpc::XmlRpcValue::TypeString &&
-                  splitUri(std::string(p), &host, &port) && host == host_;
-        }
-        it = is_local.emplace(node, local).first;
-      }
-      if (it->second)
-      {
-        topics.insert(topic);
-        break;
-      }
-    }
-  }
-  return topics;
+  return anyscale_agent::localSubscribedTopics(*state, ros::this_node::getName(), [&](const std::string& node) {
+    if (own_nodes.count(node))
+      return true;
+    XmlRpc::XmlRpcValue a, r, p;
+    a[0] = ros::this_node::getName();
+    a[1] = node;
+    std::string host;
+    int port = 0;
+    return ros::master::execute("lookupNode", a, r, p, false) && p.getType() == XmlRpc::XmlRpcValue::TypeString &&
+           splitUri(std::string(p), &host, &port) && host == host_;
+  });
 }
 
 }  // namespace anyscale_agent

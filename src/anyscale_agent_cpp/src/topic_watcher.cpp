@@ -40,9 +40,9 @@ TopicWatcher::TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, 
   nh_.setCallbackQueue(&inline_queue_);
 }
 
-bool TopicWatcher::setWatched(const std::vector<std::string>& topics, std::string* error)
+bool TopicWatcher::setWatched(const std::vector<std::string>& topics, const std::vector<std::string>& subscribers,
+                              std::string* error)
 {
-  std::vector<std::string> resolved;
   for (const auto& t : topics)
   {
     std::string why;
@@ -53,25 +53,31 @@ bool TopicWatcher::setWatched(const std::vector<std::string>& topics, std::strin
                  (why.empty() ? "" : ": " + quoted(why, 200));
       return false;
     }
-    resolved.push_back(t);
+  }
+  for (const auto& n : subscribers)
+  {
+    std::string why;
+    if (!n.empty() && (n[0] != '/' || !ros::names::validate(n, why)))
+    {
+      if (error)
+        *error = "subscriber " + quoted(n) + " is not a fully qualified node name (e.g. /amcl) or \"\"" +
+                 (why.empty() ? "" : ": " + quoted(why, 200));
+      return false;
+    }
   }
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    watched_ = resolved;
+    if (!watched_.assign(topics, subscribers, error))
+      return false;
   }
-  std::set<std::string> local;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    local = local_topics_;
-  }
-  update(local);
+  apply();
   return true;
 }
 
 std::vector<std::string> TopicWatcher::watched() const
 {
   std::lock_guard<std::mutex> lock(mutex_);
-  return watched_;
+  return watched_.topics();
 }
 
 void TopicWatcher::subscribe(const std::string& topic, const std::shared_ptr<Counter>& c)
@@ -104,15 +110,37 @@ void TopicWatcher::subscribe(const std::string& topic, const std::shared_ptr<Cou
 
 void TopicWatcher::update(const std::set<std::string>& local_topics)
 {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    local_topics_ = local_topics;
+  }
+  apply();
+}
+
+void TopicWatcher::setRunning(const std::set<std::string>& running, const std::function<bool()>& may_call_master)
+{
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    running_ = running;
+    const std::set<std::string> wanted = watched_.toCount(local_topics_, running_, watch_all_);
+    bool same = wanted.size() == counters_.size();
+    for (auto it = wanted.begin(); same && it != wanted.end(); ++it)
+      same = counters_.count(*it) > 0;
+    if (same)
+      return;
+  }
+  // roscpp's subscribe and unsubscribe call the master and retry until it answers.
+  if (may_call_master())
+    apply();
+}
+
+void TopicWatcher::apply()
+{
   std::lock_guard<std::mutex> subscribing(subscribing_);
   std::map<std::string, std::shared_ptr<Counter>> dropped, added;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    local_topics_ = local_topics;
-    std::set<std::string> wanted;
-    for (const auto& t : watched_)
-      if (watch_all_ || local_topics.count(t))
-        wanted.insert(t);
+    const std::set<std::string> wanted = watched_.toCount(local_topics_, running_, watch_all_);
     for (auto it = counters_.begin(); it != counters_.end();)
     {
       if (!wanted.count(it->first))
@@ -128,6 +156,26 @@ void TopicWatcher::update(const std::set<std::string>& local_topics)
     for (const auto& t : wanted)
       if (!counters_.count(t))
         added[t] = counters_[t] = std::make_shared<Counter>(window_s_);
+  }
+  // Counters come and go with moves, a few times a run: each change is logged with what it was
+  // based on. (A counter dropped while its node still ran here once made the decision node
+  // bring AMCL and AR home from a 27 Mbit/s link; the log could not say why.)
+  if (!dropped.empty() || !added.empty())
+  {
+    std::string graph, running;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      for (const auto& t : local_topics_)
+        graph += (graph.empty() ? "" : " ") + t;
+      for (const auto& n : running_)
+        running += (running.empty() ? "" : " ") + n;
+    }
+    for (const auto& entry : dropped)
+      ROS_INFO("topic counter: stopped counting %s (subscribed here by the graph: [%s]; nodes run here: [%s])",
+               entry.first.c_str(), graph.c_str(), running.c_str());
+    for (const auto& entry : added)
+      ROS_INFO("topic counter: counting %s (subscribed here by the graph: [%s]; nodes run here: [%s])",
+               entry.first.c_str(), graph.c_str(), running.c_str());
   }
   for (auto& [topic, c] : dropped)
     c->sub.shutdown();
@@ -152,6 +200,12 @@ void TopicWatcher::renewSilent(double now, double silent_s, const std::function<
     return;
   for (auto& [topic, c] : silent)
   {
+    {
+      // Once per silence: a topic whose publisher stopped is subscribed again every silent_s.
+      std::lock_guard<std::mutex> counter_lock(c->mutex);
+      if (c->last_seen >= c->subscribed_at)
+        ROS_INFO("topic counter: nothing on %s for %.1f s: subscribing again", topic.c_str(), now - c->last_seen);
+    }
     // Released first: roscpp keeps one subscription per topic, and a new subscriber beside the
     // old one would only share its dead connection.
     c->sub.shutdown();

@@ -82,3 +82,20 @@ def test_a_start_that_timed_out_is_not_asked_again():
     with pytest.raises(TimeoutError):
         client.start("laptop", "/amcl", [], 3.0)
     assert len(calls) == 1
+
+
+def test_the_decision_nodes_worker_logs_a_failed_job_as_the_decision_node(monkeypatch):
+    """agent_client.Worker is a JobWorker (test_job_worker.py) whose failed jobs are logged
+    as "anyscale decision: <error>"; the next job still runs."""
+    import rospy
+    from anyscale_core import agent_client
+    logged, done = [], []
+    monkeypatch.setattr(rospy, "logerr", lambda fmt, *args: logged.append(fmt % args))
+
+    def renew():
+        raise TimeoutError("no answer within 1 s")
+    worker = agent_client.Worker("anyscale_test")
+    worker.submit(renew, key="renew")
+    worker.submit(lambda: done.append("next"))
+    assert worker.close(10.0)
+    assert logged == ["anyscale decision: no answer within 1 s"] and done == ["next"]

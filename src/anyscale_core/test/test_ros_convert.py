@@ -60,11 +60,15 @@ def test_watched_topics_follow_the_subscribers_scale(testbed):
     mapping = {n.name: "robot" for n in testbed.nodes}
     mapping["amcl"] = "laptop"
     lists = conv.watched_topics(testbed, mapping)
-    into_amcl = sorted({c.topic for c in testbed.connections if c.subscriber == "amcl"})
+    into_amcl = sorted({(c.topic, "/amcl") for c in testbed.connections if c.subscriber == "amcl"})
     assert lists["laptop"] == into_amcl
-    assert lists["robot"] == sorted({c.topic for c in testbed.connections
-                                     if c.subscriber != "amcl"})
-    assert "/amcl_pose" in lists["robot"]          # amcl publishes it, the robot's EKF receives
+    assert {t for t, _ in lists["robot"]} == {c.topic for c in testbed.connections
+                                              if c.subscriber != "amcl"}
+    assert ("/amcl_pose", "/ekf") in lists["robot"]  # amcl publishes it, the robot's EKF receives
+    # A topic with two subscribers on one scale is listed for each: counted while either runs.
+    scan_readers = {n for t, n in lists["robot"] if t == "/scan"}
+    assert scan_readers == {"/" + c.subscriber for c in testbed.connections
+                            if c.topic == "/scan" and c.subscriber != "amcl"}
 
 
 @pytest.mark.parametrize("value, text", [(1.5, "1.5"), (float("nan"), ".nan"),

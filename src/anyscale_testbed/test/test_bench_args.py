@@ -56,3 +56,18 @@ def test_the_premise_bench_states_the_host_speed_of_a_normalised_run(premise):
                                            (10.0, 0.35, 0.93, 16.0)], reference_cpu_ms=15.5)
     assert premise.host_speed_line(rec) == ("    host workload 16.0 ms median (15.5-16.4; "
                                             "reference 15.5), robot quota 0.340-0.360 cores")
+
+
+def test_the_tolerance_bench_records_the_inputs_of_amcl_unless_told_not_to(tolerances):
+    argv = tolerances.run_argv(tolerances.parse_args([]), 0, 11, "out/run01")
+    assert argv[argv.index("--record-inputs") + 1] == "/scan,/joint_states,/odom,/odometry/filtered"
+    argv = tolerances.run_argv(tolerances.parse_args(["--record-inputs", ""]), 0, 11, "out/run01")
+    assert "--record-inputs" not in argv
+
+
+@pytest.mark.parametrize("bench", ["bench_tolerances", "bench_premise"])
+def test_the_benches_help_prints_and_exits_0(bench, capsys):
+    with pytest.raises(SystemExit) as ended:
+        load_bench(bench).parse_args(["--help"])
+    assert ended.value.code == 0
+    assert "--normalise-cpu" in capsys.readouterr().out

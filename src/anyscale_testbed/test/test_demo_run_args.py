@@ -64,3 +64,20 @@ def test_the_start_line_states_the_quotas_and_when_they_start_to_follow_the_host
     assert normaliser_state(n) == ("host speed: CPU quota robot 0.340, laptop 0.900 cores, as "
                                    "calibrated, until the nodes have run 30 s; then every 5 s, "
                                    "from the workload's median CPU ms (calibrated at 15.5 ms)")
+
+
+def test_record_inputs_are_a_list_of_topics_and_a_bad_one_is_one_line(capsys):
+    assert parse_args([], "out").record_inputs == []
+    assert parse_args(["--record-inputs", "/scan, /odom,"], "out").record_inputs == ["/scan", "/odom"]
+    with pytest.raises(SystemExit) as ended:
+        parse_args(["--record-inputs", "/scan,odom"], "out")
+    assert ended.value.code == 2
+    assert "--record-inputs: expected resolved topic names such as /scan, got 'odom'" in \
+        capsys.readouterr().err
+
+
+def test_help_prints_and_exits_0(capsys):
+    with pytest.raises(SystemExit) as ended:
+        parse_args(["--help"], "out")
+    assert ended.value.code == 0
+    assert "--record-inputs" in capsys.readouterr().out

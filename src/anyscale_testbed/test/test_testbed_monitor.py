@@ -70,3 +70,26 @@ def test_a_paused_process_is_no_live_instance_and_is_reported_paused():
     finally:
         node.kill()
         node.wait()
+
+
+
+def census_pids():
+    pids = {}
+    return node_processes(NODE, MASTER, pids=pids)["census_node"], pids
+
+
+def test_pids_are_given_in_the_order_of_the_namespaces_and_a_paused_one_has_none():
+    sleeper = [sys.executable, "-c", "import time; time.sleep(30)"]
+    ours = spawn(sleeper + ["__name:=census_node"])
+    remote = spawn(sleeper + ["__name:=census_node__laptop"])
+    try:
+        assert wait_for(lambda: len(census_pids()[0]) == 2)
+        assert census_pids()[1] == {"census_node": [ours.pid, remote.pid]}
+        remote.send_signal(signal.SIGSTOP)
+        assert wait_for(lambda: len(census_pids()[0]) == 1)
+        assert census_pids() == ([os.readlink(f"/proc/{ours.pid}/ns/net")],
+                                 {"census_node": [ours.pid]})
+    finally:
+        for p in (ours, remote):
+            p.kill()
+            p.wait()

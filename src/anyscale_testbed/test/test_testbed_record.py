@@ -182,3 +182,28 @@ def test_the_end_table_flags_each_violation_in_plain_words_and_red_on_a_terminal
     assert colour_violations(flagged[0], terminal=True) == f"\033[31m{flagged[0]}\033[0m"
     assert colour_violations(flagged[0], terminal=False) == flagged[0]
     assert colour_violations("migrations: 1 out", terminal=True) == "migrations: 1 out"
+
+
+def test_a_silence_at_home_names_the_longest_gap_of_each_recorded_input():
+    rec = TestbedRecord(finished_t=40.0, outputs={"amcl": "/amcl_pose"},
+                        tolerances={"/amcl_pose": 2.0}, inputs=["/scan", "/odom"],
+                        receipts={"/amcl_pose": ticks(5.0, 20.0) + ticks(23.0, 40.0),
+                                  "/scan": ticks(5.0, 40.0),
+                                  "/odom": ticks(5.0, 20.4) + ticks(21.8, 40.0)})
+    (v,) = tolerance_violations(rec)
+    assert v.cause.startswith("no move, restart or link change of amcl; ")
+    # The scan kept coming (every 0.2 s); odometry stopped for 1.4 s from t=20.4 s.
+    assert v.cause.endswith("longest input gaps at the monitor: /scan 0.20 s, "
+                            "/odom 1.40 s from t=20.4 s")
+
+
+def test_the_inputs_survive_a_round_trip_and_old_records_load_without_them(tmp_path):
+    path = str(tmp_path / "record.json")
+    TestbedRecord(inputs=["/scan"], receipts={"/scan": [1.0]}).save(path)
+    assert TestbedRecord.load(path).inputs == ["/scan"]
+    with open(path) as f:
+        d = json.load(f)
+    del d["inputs"]
+    with open(path, "w") as f:
+        json.dump(d, f)
+    assert TestbedRecord.load(path).inputs == []

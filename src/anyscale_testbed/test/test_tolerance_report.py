@@ -4,8 +4,8 @@ import math
 
 from anyscale_testbed.testbed_figures import tolerance_violations
 from anyscale_testbed.testbed_record import EventRecord, TestbedRecord
-from anyscale_testbed.tolerance_report import (format_markdown, format_table, path_time, run_row,
-                                               write_csv)
+from anyscale_testbed.tolerance_report import (format_markdown, format_table, path_time,
+                                               rate_all_on_one_scale, run_row, write_csv)
 
 
 def ticks(start, end, period=0.2):
@@ -87,3 +87,29 @@ def test_csv_and_markdown_copies(tmp_path):
     assert "| 2 | 1 | 12 | 0 | - | 1 | 1 | 3.50/2 s ! |" in md
     assert "- run 2: /amcl_pose silent 3.50 s" in md
     assert md.rstrip().endswith("1 restarts")
+
+
+def test_the_rate_with_every_node_on_one_scale_skips_each_spans_settling_and_short_spans():
+    home = {"amcl": "robot", "laser": "robot"}
+    out = {"amcl": "laptop", "laser": "robot"}
+    rec = TestbedRecord(mappings=[(0.0, home, 0, 0), (100.0, out, 0, 0), (200.0, home, 0, 0),
+                                  (205.0, out, 0, 0), (300.0, home, 0, 0)],
+                        receipts={"/amcl_pose": ticks(0.0, 100.0, 0.5) + ticks(100.0, 200.0, 0.2)
+                                  + ticks(200.0, 400.0, 0.5)})
+    # At home 5-100 s (2 Hz) and 305-400 s (2 Hz); 200-205 s is too short; out is 5 Hz.
+    assert abs(rate_all_on_one_scale(rec, "/amcl_pose", 400.0) - 2.0) < 0.02
+    assert math.isnan(rate_all_on_one_scale(TestbedRecord(), "/amcl_pose", 10.0))
+
+
+def test_a_row_gives_the_home_rate_and_the_host_speed_of_a_normalised_run(tmp_path):
+    rec = record(ticks(10.0, 310.0))
+    rec.mappings = [(5.0, {"amcl": "robot"}, 0, 0)]      # home from 10 s, its first pose
+    rec.cpu_normalisation = [(5.0, 0.34, 0.9, 14.0), (10.0, 0.36, 0.9, 15.0), (15.0, 0.35, 0.9, 16.0)]
+    row = run_row(1, 0, 0, rec, seed=11)
+    assert abs(row.home_hz["/amcl_pose"] - 5.0) < 0.05 and row.host_ms == 15.0
+    line = format_table([row]).splitlines()[1]
+    assert "5.00" in line and "15.0" in line
+    write_csv(str(tmp_path / "t.csv"), [row])
+    with open(tmp_path / "t.csv") as f:
+        (read,) = list(csv.DictReader(f))
+    assert read["host_ms"] == "15.000" and read["hz_all_on_one_scale /amcl_pose"].startswith("5.0")

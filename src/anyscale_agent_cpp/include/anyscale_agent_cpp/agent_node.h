@@ -16,6 +16,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 
 #include "anyscale_agent_cpp/graph_monitor.h"
@@ -62,6 +63,8 @@ private:
   // Timers (agent_node.cpp).
   void onSupervise(const ros::SteadyTimerEvent&);   // reaping, signal escalation, leases, standbys
   void onGraph(const ros::SteadyTimerEvent&);       // master queries: registration, local topics
+  void onGraphQueries();
+  std::set<std::string> runningNodes() const;        // declared names of the processes that run here
   // Status (agent_status.cpp).
   void onSample(const ros::SteadyTimerEvent&);      // /proc, topics, link -> /anyscale/status
   void onUplink(const ros::SteadyTimerEvent&);      // carrier of ~uplink_interface; status on change

@@ -5,6 +5,8 @@
 #include <set>
 #include <string>
 
+#include "anyscale_agent_cpp/graph_state.h"
+
 namespace anyscale_agent
 {
 
@@ -18,7 +20,7 @@ public:
 
   // Topics with at least one subscriber on this scale: a node this agent supervises
   // (`own_nodes`, fully qualified), or any node whose XML-RPC URI is on this host.
-  // nullopt if the master cannot be asked.
+  // nullopt if the master cannot be asked or does not know this agent (graph_state.h).
   std::optional<std::set<std::string>> localSubscribedTopics(const std::set<std::string>& own_nodes) const;
 
   struct Registration
@@ -31,12 +33,14 @@ public:
   // Whether `node` publishes, subscribes to or serves anything in the master's system state.
   // (lookupNode is no test of that: the master keeps a node with a parameter subscription,
   // and rospy's rosout subscribes to one that is never dropped.) True if the master cannot
-  // be asked.
+  // be asked or does not know this agent.
   bool inSystemState(const std::string& node) const;
 
   const std::string& host() const { return host_; }
 
 private:
+  std::optional<SystemState> systemState() const;
+
   std::string host_;
 };
 

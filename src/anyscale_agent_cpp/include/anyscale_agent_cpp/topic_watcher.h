@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "anyscale_agent_cpp/rate_window.h"
+#include "anyscale_agent_cpp/watch_list.h"
 
 namespace anyscale_agent
 {
@@ -42,15 +43,20 @@ public:
   TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all,
                PublisherSeen on_publisher = {});
 
-  // The topics to watch (resolved names). Topics are validated here; returns false with the
-  // offending name in *error and changes nothing.
-  bool setWatched(const std::vector<std::string>& topics, std::string* error);
+  // The topics to watch (resolved names), each with the node on this scale that subscribes
+  // to it in the model (`subscribers`: empty, or one per topic; see WatchList). Names are
+  // validated here; returns false with the offending one in *error and changes nothing.
+  bool setWatched(const std::vector<std::string>& topics, const std::vector<std::string>& subscribers,
+                  std::string* error);
   std::vector<std::string> watched() const;
 
-  // Subscribes to the watched topics that a node on this scale subscribes to (`local_topics`),
-  // or to all of them with watch_all, and drops the rest: subscribing here to a topic no local
-  // node uses would pull its data across the link only to count it.
+  // Subscribes to the watched topics that a node on this scale subscribes to, and drops the
+  // rest (WatchList::toCount): subscribing here to a topic no local node uses would pull its
+  // data across the link only to count it. `update` gives what the master's graph shows (graph
+  // thread); `setRunning` the nodes this agent runs (fully qualified), which needs no master
+  // to know. It changes the subscriptions only if `may_call_master()` (see renewSilent).
   void update(const std::set<std::string>& local_topics);
+  void setRunning(const std::set<std::string>& running, const std::function<bool()>& may_call_master);
 
   std::vector<anyscale_msgs::TopicStatistics> stats(const ros::Time& now);
 
@@ -85,8 +91,11 @@ private:
   // stats() never waits for them under mutex_.
   std::mutex subscribing_;
   mutable std::mutex mutex_;
-  std::vector<std::string> watched_;
+  void apply();  // subscribes and unsubscribes to match the watch list
+
+  WatchList watched_;
   std::set<std::string> local_topics_;
+  std::set<std::string> running_;
   std::map<std::string, std::shared_ptr<Counter>> counters_;  // subscribed topics only
 };
 

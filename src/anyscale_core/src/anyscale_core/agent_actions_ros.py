@@ -13,7 +13,7 @@ import rospy
 from . import ros_convert as conv
 from .agent_client import wait_registered
 from .decision_engine import RenewLeases, StartNode, StopNode
-from .ghost_registrations import dead_registrations, ghost_candidates, purge
+from .ghost_registrations import dead_registrations, ghost_candidates, pauses_under_way, purge
 from .handover_ros import PUBLISHED, TIMED_OUT, OutputWatch, wait_for_output
 
 REGISTER_TIMEOUT_S = 30.0  # a started node not registered by then is reported as failed
@@ -119,7 +119,7 @@ class AgentActions:
             # Before the call: a paused instance does not answer on its API, and the ghost
             # check must not take it for a dead one while the pause is under way.
             with self.lock:
-                self.pausing.add(instance)
+                self.pausing[instance] = (scale, None)
         try:
             reply = self.agents.stop(scale, node, self.params.engine.lease_s if best_effort
                                      else None, pause=pause)
@@ -130,9 +130,12 @@ class AgentActions:
             reply = None
             if not best_effort:
                 rospy.logwarn("anyscale decision: stop %s on %s failed: %s", node, scale, e)
+        if pause and reply is not None and reply.success:
+            with self.lock:
+                self.pausing[instance] = (scale, time.monotonic())
         if pause and (reply is None or not reply.success):
             with self.lock:
-                self.pausing.discard(instance)
+                self.pausing.pop(instance, None)
             # Not paused (e.g. it was still starting): left running, it would publish beside
             # the instance that replaced it.
             self._stop(node, scale, best_effort)
@@ -151,7 +154,7 @@ class AgentActions:
             self.starting.discard((node, scale))
             if ok:
                 self.engine.start_acknowledged(node, time.monotonic())
-                self.pausing.discard(self.model.instance_name(node, scale))  # resumed
+                self.pausing.pop(self.model.instance_name(node, scale), None)  # resumed
         if not ok:
             self._start_failed(action, event, message, handover)
             return 0
@@ -216,18 +219,18 @@ class AgentActions:
             lists = conv.watched_topics(self.model, self.engine.mapping())
             seen = set(self.reports)
         now = time.monotonic()
-        for scale, topics in lists.items():
+        for scale, watched in lists.items():
             last = self.watch_sent.get(scale)
-            if scale not in seen or (not force and last and last[0] == topics and
+            if scale not in seen or (not force and last and last[0] == watched and
                                      now - last[1] < WATCH_RESEND_S):
                 continue
-            self.watch_sent[scale] = (topics, now)
-            self.scale_workers[scale].submit(lambda s=scale, t=topics: self._set_watched(s, t),
+            self.watch_sent[scale] = (watched, now)
+            self.scale_workers[scale].submit(lambda s=scale, w=watched: self._set_watched(s, w),
                                              key="watch")
 
-    def _set_watched(self, scale, topics):
+    def _set_watched(self, scale, watched):
         try:
-            self.agents.set_watched(scale, topics)
+            self.agents.set_watched(scale, [t for t, _ in watched], [n for _, n in watched])
             failure = None
         except Exception as e:  # noqa: BLE001 - retried at the next resend
             self.watch_sent.pop(scale, None)
@@ -251,8 +254,10 @@ class AgentActions:
         with self.lock:
             mapping = self.engine.mapping()
             busy = set(self.handing_over)
-            paused = self.pausing | {p.instance for status in self.statuses.values()
-                                     for p in status.nodes if p.state == p.PAUSED}
+            received = {scale: report.received_at for scale, report in self.reports.items()}
+            paused = pauses_under_way(self.pausing, received) | {
+                p.instance for status in self.statuses.values() for p in status.nodes
+                if p.state == p.PAUSED}
         names = ghost_candidates(self.model, mapping, busy, paused)
         self.registrations.submit(lambda: self._purge(names), key="purge")
 

@@ -1,5 +1,4 @@
 """Calls to the agents' services with timeouts, off the decision loop's thread."""
-import collections
 import threading
 import time
 import xmlrpc.client
@@ -9,6 +8,10 @@ import rosgraph
 import rospy
 from anyscale_msgs.srv import (ListNodes, RenewLeases, SetWatchedTopics, StartNode,
                                StopNode)
+
+from . import xmlrpc_calls
+from .job_worker import JobWorker
+from .service_lookup import RememberingServiceProxy, ServiceUris
 
 
 def call_with_timeout(fn: Callable, timeout_s: float):
@@ -46,10 +49,12 @@ class AgentClient:
         self.timeout_s = timeout_s
         self.stop_timeout_s = stop_timeout_s
         self.stop_sigint_timeout_s = stop_sigint_timeout_s
+        self.uris = ServiceUris()
 
     def call(self, scale: str, service: str, timeout_s: Optional[float] = None, **request):
         # A fresh proxy per call: proxies are not meant to be shared between threads.
-        proxy = rospy.ServiceProxy(f"/anyscale/{scale}/{service}", self.SERVICES[service])
+        proxy = RememberingServiceProxy(f"/anyscale/{scale}/{service}", self.SERVICES[service],
+                                        self.uris)
         return call_with_timeout(lambda: proxy(**request),
                                  self.timeout_s if timeout_s is None else timeout_s)
 
@@ -78,19 +83,9 @@ class AgentClient:
         return self.call(scale, "renew_leases", min(self.timeout_s, lease_s), nodes=list(nodes),
                          lease_s=lease_s)
 
-    def set_watched(self, scale, topics):
-        return self.call(scale, "set_watched_topics", topics=list(topics))
-
-
-class _TimeoutTransport(xmlrpc.client.Transport):
-    def __init__(self, timeout_s):
-        super().__init__()
-        self._timeout_s = timeout_s
-
-    def make_connection(self, host):
-        conn = super().make_connection(host)
-        conn.timeout = self._timeout_s
-        return conn
+    def set_watched(self, scale, topics, subscribers=()):
+        return self.call(scale, "set_watched_topics", topics=list(topics),
+                         subscribers=list(subscribers))
 
 
 def registered_pid(node: str, caller_id: str, timeout_s: float = 1.0) -> Optional[int]:
@@ -98,8 +93,7 @@ def registered_pid(node: str, caller_id: str, timeout_s: float = 1.0) -> Optiona
     with a timeout: it may sit behind a partitioned link); None if unknown."""
     try:
         uri = rosgraph.Master(caller_id).lookupNode(node)
-        code, _, pid = xmlrpc.client.ServerProxy(
-            uri, transport=_TimeoutTransport(timeout_s)).getPid(caller_id)
+        code, _, pid = xmlrpc_calls.proxy(uri, timeout_s).getPid(caller_id)
     except (rosgraph.MasterError, OSError, xmlrpc.client.Error):
         return None
     return pid if code == 1 else None
@@ -135,37 +129,15 @@ class CallFailures:
         return self._failing.pop(key, 0)
 
 
-class Worker:
-    """A thread that runs queued jobs in order. Keyed jobs replace a pending job of the same
-    key (only the latest lease renewal or watch list of a scale matters)."""
+def _log_failed_job(e: Exception, key) -> None:
+    rospy.logerr("anyscale decision: %s", e)
+
+
+class Worker(JobWorker):
+    """The decision node's job thread (one per node, per scale, and for the registrations):
+    a JobWorker whose failed jobs are logged as the decision node's errors. Keyed jobs replace
+    a pending job of the same key (only the latest lease renewal or watch list of a scale
+    matters)."""
 
     def __init__(self, name: str):
-        self._jobs = collections.OrderedDict()
-        self._cond = threading.Condition()
-        self._seq = 0
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
-        self._thread.start()
-
-    def submit(self, job: Callable[[], None], key=None):
-        with self._cond:
-            if key is None:
-                self._seq += 1
-                key = ("seq", self._seq)
-            self._jobs.pop(key, None)
-            self._jobs[key] = job
-            self._cond.notify()
-
-    def pending(self) -> int:
-        with self._cond:
-            return len(self._jobs)
-
-    def _run(self):
-        while True:
-            with self._cond:
-                while not self._jobs:
-                    self._cond.wait()
-                _, job = self._jobs.popitem(last=False)
-            try:
-                job()
-            except Exception as e:  # noqa: BLE001 - one failed job must not end the worker
-                rospy.logerr("anyscale decision: %s", e)
+        super().__init__(name, on_error=_log_failed_job)

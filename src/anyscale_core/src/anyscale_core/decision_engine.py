@@ -17,6 +17,7 @@ from .constraints import DynamicState, FrequencyToleranceTracker, required_bandw
 from .cost import ObjectiveIntegrator, perf
 from .link_capacity import BandwidthHold, LinkCapacity
 from .restart_backoff import BackoffParams, RestartBackoff
+from .restart_state import RestartState, RestartStateError, decode, encode
 
 
 @dataclass(frozen=True)
@@ -142,6 +143,61 @@ class DecisionEngine:
                                                params.hold_after_loss_s),
                                  params.bandwidth_stay_margin, params.weak_link_mbps)
         self.start_acked_at: Dict[int, float] = {}   # node -> when its latest start was answered
+        # node -> the remote scale it ran on under the decision node before a restart (restored)
+        self.out_before_restart: Dict[int, str] = {}
+
+    # --- across a restart of the decision node (restart_state.py) -----------------------------
+    def holds_last_s(self) -> float:
+        """The longest hold a saved state can feed: older state holds nothing."""
+        return max(self.params.hysteresis_s, self.params.hold_after_loss_s)
+
+    def restart_state(self, now: float) -> RestartState:
+        """What a decision node restarted after this one needs to keep its holds: the returns
+        still inside T, the latest loss still inside hold_after_loss_s, and the mapping."""
+        back = {self.ch.node_names[i]: t for i, t in sorted(self.migrated_back_at.items())
+                if now - t < self.params.hysteresis_s}
+        lost = self.link.hold.lost_at
+        return RestartState(now, self.mapping(), back,
+                            lost if now - lost < self.params.hold_after_loss_s else None)
+
+    def saved_state(self, wall_now: float, now: float) -> str:
+        """restart_state as the text the rospy wrapper stores (wall-clock times)."""
+        return encode(self.restart_state(now), wall_now, now)
+
+    def restore_saved_state(self, text, wall_now: float, now: float) -> Tuple[bool, str]:
+        """Before adopt_or_start: take over the holds of the decision node that ran before
+        (text: what its saved_state returned). Returns whether the state could be read (False:
+        malformed, worth a warning) and a line for the log. Malformed or stale state changes
+        nothing: the engine starts fresh, as it always did."""
+        try:
+            state = decode(text, wall_now, now)
+        except RestartStateError as e:
+            return False, f"saved state unreadable ({e}); starting fresh"
+        age = now - state.saved_at
+        if age > self.holds_last_s():
+            return True, (f"saved state {age:.1f} s old, older than the longest hold it could "
+                          f"feed ({self.holds_last_s():g} s); starting fresh")
+        back = {}
+        for name, t in state.migrated_back_at.items():
+            if name in self.ch.node_names and now - t < self.params.hysteresis_s:
+                back[self.ch.node_index(name)] = t
+        master = self.ch.scale_names[self.ch.master]
+        out = {self.ch.node_index(n): s for n, s in state.mapping.items()
+               if n in self.ch.node_names and s in self.ch.scale_names and s != master}
+        lost = state.link_lost_at
+        if lost is not None and not now - lost < self.params.hold_after_loss_s:
+            lost = None
+        self.migrated_back_at.update(back)
+        self.out_before_restart = out
+        if lost is not None:
+            self.link.hold.restore_loss(lost)
+        parts = [f"{self.ch.node_names[i]} brought home {now - t:.1f} s ago"
+                 for i, t in sorted(back.items())]
+        if lost is not None:
+            parts.append(f"link lost {now - lost:.1f} s ago")
+        parts += [f"{self.ch.node_names[i]} was on {s}" for i, s in sorted(out.items())]
+        return True, (f"saved state of {age:.1f} s ago: " +
+                      ("; ".join(parts) if parts else "no hold running"))
 
     # --- start-up -----------------------------------------------------------------------------
     def adopt_or_start(self, reports: Mapping[str, ScaleReport], now: float) -> TickResult:
@@ -163,7 +219,15 @@ class DecisionEngine:
             else:
                 actions.append(self._start(i, self.assign[i]))
                 events.append(Event("start", name, "", home, "initial configuration"))
+            if i in self.out_before_restart and self.assign[i] == self.ch.master:
+                # It ran on a remote scale under the decision node before this one, and is
+                # home now (its lease ran out while nobody renewed it): brought home, held for T.
+                self.migrated_back_at[i] = now
+                events[-1] = replace(events[-1], reason=(
+                    f"{events[-1].reason}; on {self.out_before_restart[i]} before the decision "
+                    f"node restarted: home for {self.params.hysteresis_s:g} s"))
             self.moved_at[i] = now
+        self.out_before_restart = {}
         self.objective.change(now, perf(self.ch, self.assign))
         return TickResult(actions, events, self.dynamic_state(reports, now), [])
 

@@ -1,10 +1,12 @@
 """The decision node's rospy layer: parameters, agent status in, agent services out, the
 mapping, events and diagnostics published. The decisions themselves are DecisionEngine's."""
+import http.client
 import math
 import os
 import threading
 import time
-from dataclasses import dataclass
+import xmlrpc.client
+from dataclasses import dataclass, replace
 from typing import Dict, List
 
 import diagnostic_updater
@@ -25,9 +27,34 @@ from .model import ModelError
 from .model_loader import load_model
 from .process_priority import set_own_nice
 from .restart_backoff import BackoffParams
+from .restart_state import encode
 
 # A remote scale's status silent this long while the robot's uplink is up: a new connection.
 RESUBSCRIBE_AFTER_S = 5.0
+
+# The engine's holds (T after a return, hold_after_loss_s after a link loss) for a decision node
+# started after this one (restart_state.py says what and why). Kept on the parameter server,
+# not in a file or in the agents' reports:
+# - a private parameter outlives the node's process, whichever way it is restarted: forked again
+#   by its warm standby (--warm-restart) or respawned by roslaunch, which sets parameters once,
+#   at launch, and leaves them as they are on a respawn;
+# - it belongs to the ROS system it was written in: a new roscore (a new launch of the robot)
+#   starts without it, where a file under ROS_HOME would be read by the next launch, or by a
+#   second system (two test beds) on the same machine; a roscore restart within a run gets it
+#   back from the master keeper's snapshot with every other parameter (master_restore.py);
+# - the agents know when they started each instance, but not whether a start at home was a
+#   return, nor when the link was lost; carrying that there would take a message change and
+#   the C++ agent for what one parameter holds.
+# Written when it changes (a tick at most one period after the change, so a node killed within
+# that period may lose the latest) and, while nodes are out, at least every STATE_REFRESH_S: its
+# saved_at then says the mapping was current, so a restart that comes within T finds the nodes
+# whose lease ran out meanwhile and holds them home for T. One write is one XML-RPC call to the
+# local master, made on a worker thread of its own: a master that is gone or slow holds no tick.
+STATE_PARAM = "~restart_state"
+STATE_REFRESH_S = 2.0
+# What an XML-RPC call to the master raises when it is gone, does not answer, or breaks off.
+MASTER_CALL_ERRORS = (OSError, http.client.HTTPException, xmlrpc.client.Error,
+                      rospy.ROSException)
 
 
 class ParamError(ValueError):
@@ -115,6 +142,10 @@ class DecisionNode(AgentActions):
         self.model, self.ch, allocator = prepare_decision(params.model, params.allocator)
         self.master = self.model.master.name
         self.engine = DecisionEngine(self.ch, allocator, params.engine, time.monotonic())
+        self._restore_state()
+        self.state_worker = Worker("anyscale_state")
+        self.state_written = None             # the RestartState (saved_at 0) last written
+        self.state_written_at = -math.inf
         self.lock = threading.Lock()          # the engine and the reports, across threads
         self.wake = threading.Event()         # set: tick now (a link was lost, a node ended)
         self.reports: Dict[str, object] = {}
@@ -131,7 +162,8 @@ class DecisionNode(AgentActions):
         self.scale_workers = {s: Worker(f"anyscale_{s}") for s in self.ch.scale_names}
         self.call_failures = CallFailures()
         self.handing_over = set()             # nodes whose old and new instance both run
-        self.pausing = set()                  # instance names paused at our request
+        # instance paused at our request -> (its scale, when the pause was acknowledged)
+        self.pausing = {}
         self.registrations = Worker("anyscale_registrations")
         self.caller_id = rospy.get_name()
         rospy.set_param("/anyscale/model", os.path.abspath(params.model))  # `anyscale top`
@@ -185,6 +217,7 @@ class DecisionNode(AgentActions):
             before = self.engine.mapping()
             result = self.engine.adopt_or_start(dict(self.reports), time.monotonic())
         self._dispatch(result, before, initial=True)
+        self._save_state()
         # The allocator acts on measured rates and loads: not before the paper's initial
         # configuration runs (a node moved while the rest still imports is judged on nothing).
         coming_up = {(a.node, a.scale) for a in result.actions if isinstance(a, StartNode)}
@@ -203,10 +236,49 @@ class DecisionNode(AgentActions):
                 self.state = result.state
                 self.link_up = dict(result.state.link_up)
             self._dispatch(result, before)
+            self._save_state()
             self._resubscribe_if_silent()
             self._send_watch_lists()
             self._purge_ghosts()
             self.updater.update()
+
+    # --- across a restart of this node (STATE_PARAM) --------------------------------------------
+    def _restore_state(self):
+        """The holds of the decision node that ran before this one, if any: a line in the log
+        either way, a warning for a state that cannot be read (then a fresh start)."""
+        try:
+            text = rospy.get_param(STATE_PARAM, None)
+        except MASTER_CALL_ERRORS as e:
+            rospy.logwarn("anyscale decision: cannot read %s (%s); starting fresh",
+                          rospy.resolve_name(STATE_PARAM), e)
+            return
+        if text is None:
+            return                              # the first decision node of this roscore
+        readable, line = self.engine.restore_saved_state(text, time.time(), time.monotonic())
+        (rospy.loginfo if readable else rospy.logwarn)("anyscale decision: %s: %s",
+                                                       rospy.resolve_name(STATE_PARAM), line)
+
+    def _save_state(self):
+        now = time.monotonic()
+        with self.lock:
+            state = self.engine.restart_state(now)
+        unchanged = replace(state, saved_at=0.0)
+        out = any(s != self.master for s in state.mapping.values())
+        if unchanged == self.state_written and \
+                not (out and now - self.state_written_at >= STATE_REFRESH_S):
+            return
+        self.state_written, self.state_written_at = unchanged, now
+        self.state_worker.submit(lambda text=encode(state, time.time(), now):
+                                 self._write_state(text), key="state")
+
+    @staticmethod
+    def _write_state(text: str):
+        try:
+            rospy.set_param(STATE_PARAM, text)
+        except MASTER_CALL_ERRORS as e:
+            rospy.logwarn_throttle(30.0, "anyscale decision: cannot save %s (%s): a restart of "
+                                   "this node meanwhile would forget its holds" %
+                                   (rospy.resolve_name(STATE_PARAM), e))
 
     def _resubscribe_if_silent(self):
         """After a long outage, TCP's retransmission backoff can hold a scale's status connection

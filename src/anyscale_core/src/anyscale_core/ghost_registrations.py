@@ -8,7 +8,8 @@ before the link went, and that TCP delivers once the link is back, registers it 
 decision node removes such registrations the way `rosnode cleanup` does, but only for instance
 names it manages, and only once the instance no longer answers on its XML-RPC API.
 """
-from typing import AbstractSet, Iterable, List, Mapping
+import math
+from typing import AbstractSet, Iterable, List, Mapping, Optional, Set, Tuple
 
 import rosgraph
 import rosnode
@@ -24,6 +25,24 @@ def ghost_candidates(model, mapping: Mapping[str, str], busy: AbstractSet[str],
     return [name for node, where in mapping.items() if node not in busy
             for scale in model.scale_names if scale != where
             for name in [model.instance_name(node, scale)] if name not in paused]
+
+
+# The agents report at 2 Hz: a status received this long after a pause was acknowledged was
+# sampled after the pause, and says whether the instance is still paused.
+PAUSE_SETTLED_S = 1.0
+
+
+def pauses_under_way(pausing: Mapping[str, Tuple[str, Optional[float]]],
+                     status_received: Mapping[str, float]) -> Set[str]:
+    """The instances to take for paused although no agent reports them so yet: instance ->
+    (its scale, when its pause was acknowledged, or None while the call is under way), and
+    scale -> when its latest status came (the same monotonic clock). Once a status of the scale
+    came PAUSE_SETTLED_S after the acknowledgement, the agent's report decides: an instance that
+    died while being paused (a SIGSEGV in the fault soak) is no longer reported paused, and its
+    registration is removed like any other ghost's, where before it stayed until the node was
+    started on that scale again (14.6 s of a misplaced /ar_markers publisher in the soak)."""
+    return {instance for instance, (scale, acked) in pausing.items()
+            if acked is None or status_received.get(scale, -math.inf) < acked + PAUSE_SETTLED_S}
 
 
 def registered_nodes(master: rosgraph.Master) -> set:

@@ -36,6 +36,15 @@ class BandwidthHold:
         while len(self._samples) > 1 and self._samples[1][0] <= t - self.hold_s:
             self._samples.popleft()
 
+    @property
+    def lost_at(self) -> float:
+        """The latest time the link was seen down (-inf: never)."""
+        return self._lost_at
+
+    def restore_loss(self, t: float):
+        """A loss the decision node before a restart saw (restart_state.py)."""
+        self._lost_at = max(self._lost_at, t)
+
     def admissible(self, t: float) -> float:
         if self._since is None or t - self._since < self.hold_s:
             return 0.0

@@ -52,14 +52,21 @@ def how_it_ended(process) -> str:
     return f"{how}, log {process.log_file}" if process.log_file else how
 
 
-def watched_topics(model: SystemModel, mapping: Mapping[str, str]) -> Dict[str, List[str]]:
-    """Per scale, the topics of the model's connections whose subscriber runs there."""
-    out: Dict[str, List[str]] = {s.name: [] for s in model.scales}
+def watched_topics(model: SystemModel, mapping: Mapping[str, str]) -> Dict[str, List[Tuple[str, str]]]:
+    """Per scale, (topic, subscriber) for each of the model's connections whose subscriber
+    runs there: the agent counts the topic once it runs that node, without waiting for the
+    master's graph to show the subscription (SetWatchedTopics.srv)."""
+    out: Dict[str, set] = {s.name: set() for s in model.scales}
     for c in model.connections:
         scale = mapping.get(c.subscriber)
-        if scale in out and c.topic not in out[scale]:
-            out[scale].append(c.topic)
-    return {s: sorted(t) for s, t in out.items()}
+        if scale in out:
+            out[scale].add((c.topic, qualified_node_name(c.subscriber)))
+    return {s: sorted(pairs) for s, pairs in out.items()}
+
+
+def qualified_node_name(name: str) -> str:
+    """A model node's name as the agents know it: /amcl for amcl."""
+    return name if name.startswith("/") else "/" + name
 
 
 def yaml_scalar(value) -> str:

@@ -94,6 +94,15 @@ def calibrated_reference_ms(path: str) -> float:
     return reference
 
 
+def quota_cores(robot_cpu, laptop_cpu):
+    """(robot, laptop) CPU quota in cores: those given, the calibration file's for a None."""
+    if robot_cpu is None or laptop_cpu is None:
+        calibrated = calibrated_cores(nav_demo_path("config", "testbed_calibration.yaml"))
+        robot_cpu = calibrated[0] if robot_cpu is None else robot_cpu
+        laptop_cpu = calibrated[1] if laptop_cpu is None else laptop_cpu
+    return robot_cpu, laptop_cpu
+
+
 def parse_args(argv, default_out: str):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -124,7 +133,14 @@ def parse_args(argv, default_out: str):
                         "drifts; at the same 0.34 cores AMCL with every node home ran 3.18 to "
                         "1.77 Hz over 7 runs as the workload took 11.8-16.5 ms. The quotas and "
                         "the workload's ms go in the record (cpu_normalisation). Off by "
-                        "default; not yet validated on runs")
+                        "default; its first validation cut the robot by 40 %%: see the anyscale_testbed README")
+    p.add_argument("--record-inputs", default="", metavar="TOPICS",
+                   help="comma-separated topics whose receipts the record keeps too, e.g. "
+                        "/scan,/odom,/odometry/filtered: each tolerance violation's cause then "
+                        "gives their longest gaps, so a node starved of its inputs is told from "
+                        "one slow on them. Each is one more subscriber that the robot's "
+                        "publishers serve on the robot's quota; never name a heavy stream (the "
+                        "camera) (default: none)")
     p.add_argument("--allocator", default="paper", help="paper (default), paper_local, optimal")
     p.add_argument("--hysteresis", type=float, default=10.0, help="the paper's T in s (10)")
     p.add_argument("--hold-after-loss", type=float, default=None, metavar="S",
@@ -149,6 +165,10 @@ def parse_args(argv, default_out: str):
         p.error(f"--seed: expected an integer >= 0, got {args.seed}")
     if args.seed and args.link != "coverage":
         p.error("--seed varies the coverage model: it needs --link coverage")
+    args.record_inputs = [t.strip() for t in args.record_inputs.split(",") if t.strip()]
+    bad = [t for t in args.record_inputs if not t.startswith("/") or " " in t]
+    if bad:
+        p.error(f"--record-inputs: expected resolved topic names such as /scan, got {bad[0]!r}")
     return args
 
 
@@ -156,13 +176,9 @@ def main(default_out: str, argv=None) -> int:
     """One run; `default_out` is where --out defaults to (the caller's results/testbed)."""
     args = parse_args(argv, default_out)
     model = args.model or nav_demo_path("config", "testbed.yaml")
-    robot_cpu, laptop_cpu = args.robot_cpu, args.laptop_cpu
-    calibration = nav_demo_path("config", "testbed_calibration.yaml")
-    reference_ms = calibrated_reference_ms(calibration) if args.normalise_cpu else None
-    if robot_cpu is None or laptop_cpu is None:
-        calibrated = calibrated_cores(calibration)
-        robot_cpu = calibrated[0] if robot_cpu is None else robot_cpu
-        laptop_cpu = calibrated[1] if laptop_cpu is None else laptop_cpu
+    robot_cpu, laptop_cpu = quota_cores(args.robot_cpu, args.laptop_cpu)
+    reference_ms = (calibrated_reference_ms(nav_demo_path("config", "testbed_calibration.yaml"))
+                    if args.normalise_cpu else None)
     (x, y, yaw), goals = world_start(args.world, args.start_goal)
 
     missing = [] if args.loopback else missing_capabilities()
@@ -203,28 +219,8 @@ def main(default_out: str, argv=None) -> int:
             if normaliser:
                 print(PREFIX + normaliser_state(normaliser), flush=True)
             session = TestbedSession(bed, run_dir)
-            world = session.roslaunch(
-                "robot", "world", [
-                    "anyscale_testbed", "testbed_world.launch", f"world:={args.world}",
-                    f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}", f"link:={link}",
-                    f"schedule:={json.dumps(yaml.safe_load(args.schedule))}",
-                    f"seed:={args.seed}",
-                    f"record_path:={record}", f"results_dir:={os.path.join(run_dir, 'nav')}",
-                    f"duration_s:={args.duration}", f"rviz:={str(args.rviz).lower()}"],
-                cpu_quota=False, wait_for_master=False, echo=echo_monitor_lines)
-            # The world launch runs the simulator and the recorder outside the robot's quota.
-            session.roslaunch("robot", "robot", [
-                "anyscale_nav_demo", "robot.launch", "sim:=false", "record:=false",
-                f"world:={args.world}", f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}",
-                f"allocator:={args.allocator}", f"hysteresis_s:={args.hysteresis}",
-                f"uplink_interface:={bed.uplink_interface('robot')}",
-                f"warm_start:={str(not args.cold_start).lower()}"]
-                + ([f"goals:={json.dumps(goals)}"] if goals else [])
-                + ([f"hold_after_loss_s:={args.hold_after_loss}"]
-                   if args.hold_after_loss is not None else []))
-            session.roslaunch("laptop", "laptop", [
-                "anyscale_nav_demo", "laptop.launch", f"model:={model}",
-                f"warm_start:={str(not args.cold_start).lower()}"])
+            world = launch_demo(session, bed, args, model, (x, y, yaw), goals, record, run_dir,
+                                link)
             code = world.wait()
             print(PREFIX + f"run ended (world launch exit {code}); stopping both scales")
             return 0 if code == 0 else 1
@@ -250,6 +246,46 @@ def normaliser_state(normaliser: CpuNormaliser) -> str:
     return (f"host speed: CPU quota {quotas or 'none'} cores, as calibrated, until the nodes "
             f"have run {normaliser.settle_s:g} s; then every 5 s, from the workload's median "
             f"CPU ms (calibrated at {normaliser.reference_cpu_ms:g} ms)")
+
+
+def launch_demo(session: TestbedSession, bed, args, model: str, start, goals, record: str,
+                run_dir: str, link: str, master_running: bool = False, respawn: bool = False,
+                echo=None, record_critical: bool = False):
+    """The demo's three launches on the bed: the world on the robot's side outside its CPU
+    quota (it brings up the master unless `master_running`), robot.launch and laptop.launch.
+    `args` are parse_args' (world, schedule, seed, duration, rviz, allocator, hysteresis,
+    hold_after_loss, cold_start); `respawn`: roslaunch starts the agents and the decision node
+    again when they end (the fault soak); `echo` gets each line of the world launch (default:
+    the monitor's lines and errors to the console); `record_critical`: the monitor records the
+    critical connections' topics too. Returns the world launch's process: the run ends with
+    it."""
+    x, y, yaw = start
+    warm = str(not args.cold_start).lower()
+    world = session.roslaunch(
+        "robot", "world", [
+            "anyscale_testbed", "testbed_world.launch", f"world:={args.world}",
+            f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}", f"link:={link}",
+            f"schedule:={json.dumps(yaml.safe_load(args.schedule))}",
+            f"seed:={args.seed}",
+            f"record_path:={record}", f"results_dir:={os.path.join(run_dir, 'nav')}",
+            f"duration_s:={args.duration}", f"rviz:={str(args.rviz).lower()}",
+            f"record_critical:={str(record_critical).lower()}",
+            f"record_inputs:={json.dumps(args.record_inputs)}"],
+        cpu_quota=False, wait_for_master=master_running, echo=echo or echo_monitor_lines)
+    # The world launch runs the simulator and the recorder outside the robot's quota.
+    session.roslaunch("robot", "robot", [
+        "anyscale_nav_demo", "robot.launch", "sim:=false", "record:=false",
+        f"world:={args.world}", f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}",
+        f"allocator:={args.allocator}", f"hysteresis_s:={args.hysteresis}",
+        f"uplink_interface:={bed.uplink_interface('robot')}", f"warm_start:={warm}",
+        f"respawn:={str(respawn).lower()}"]
+        + ([f"goals:={json.dumps(goals)}"] if goals else [])
+        + ([f"hold_after_loss_s:={args.hold_after_loss}"]
+           if args.hold_after_loss is not None else []))
+    session.roslaunch("laptop", "laptop", [
+        "anyscale_nav_demo", "laptop.launch", f"model:={model}", f"warm_start:={warm}",
+        f"respawn:={str(respawn).lower()}"])
+    return world
 
 
 def raise_interrupt(*_):

@@ -225,7 +225,7 @@ def parse_args(argv, default_out: str):
                         "host's speed (a shared VM's drifts, and with it AMCL's rate at a fixed "
                         "quota, every node home: 3.18-1.77 Hz in 7 runs), so that the baselines "
                         "and the tests run on the same emulated robot; see run_testbed.py "
-                        "--help. Off by default; not yet validated on runs. Runs already "
+                        "--help. Off by default; its first validation cut the robot by 40 %%: see the anyscale_testbed README. Runs already "
                         "recorded in --out are not run again, with it or without: give it a "
                         "new --out")
     p.add_argument("--out", default=default_out, help=f"results directory ({default_out})")

@@ -163,7 +163,7 @@ def move_figures(rec: TestbedRecord, outputs: Dict[str, str]) -> List[MoveFigure
     A silence belongs to one move at most: the first one whose window it overlaps and that was
     decided no more than MOVE_LEAD_S after it began. A later move in the same silence reports
     since when the output was silent instead of counting the silence a second time."""
-    end = rec.finished_t if rec.finished_t is not None else _last_time(rec)
+    end = record_end(rec)
     owned: Dict[str, set] = {}          # topic -> starts of the silences a move owns
     figures = {}
     moves = [e for e in rec.events if e.kind in ("migrate", "migrate_back") and e.node in outputs]
@@ -189,12 +189,14 @@ def move_figures(rec: TestbedRecord, outputs: Dict[str, str]) -> List[MoveFigure
 
 
 def tolerance_violations(rec: TestbedRecord, outputs: Optional[Dict[str, str]] = None,
-                         tolerances: Optional[Dict[str, float]] = None) -> List[Violation]:
+                         tolerances: Optional[Dict[str, float]] = None,
+                         end: Optional[float] = None) -> List[Violation]:
     """Every silence of an output topic longer than its connection's tolerance Δ (the
-    record's own outputs and tolerances unless given), with what happened around it."""
+    record's own outputs and tolerances unless given), with what happened around it, up to
+    `end` (the record's end unless given)."""
     outputs = rec.outputs if outputs is None else outputs
     tolerances = rec.tolerances if tolerances is None else tolerances
-    end = rec.finished_t if rec.finished_t is not None else _last_time(rec)
+    end = record_end(rec) if end is None else end
     found = []
     for topic, tol in sorted(tolerances.items()):
         if tol <= 0:
@@ -222,7 +224,22 @@ def silence_cause(rec: TestbedRecord, nodes, start: float, end: float,
                                              f"{', '.join(sorted(nodes)) or 'its publisher'}"]
     if ran_to_end:
         words.append("silent until the run ended")
+    inputs = input_gaps(rec, start, end)
+    if inputs:
+        words.append(inputs)
     return "; ".join(words)
+
+
+def input_gaps(rec: TestbedRecord, start: float, end: float) -> str:
+    """The longest gap of each recorded input (rec.inputs) from `start` to `end`, in words:
+    whether a silent node was starved of its inputs or slow on them. "" if none is recorded."""
+    parts = []
+    for topic in rec.inputs:
+        times = sorted(t for t in rec.receipts.get(topic, []) if start <= t <= end)
+        points = [start] + times + [end]
+        gap, at = max((b - a, a) for a, b in zip(points, points[1:]))
+        parts.append(f"{topic} {gap:.2f} s" + (f" from t={at:.1f} s" if gap > 0.5 else ""))
+    return ("longest input gaps at the monitor: " + ", ".join(parts)) if parts else ""
 
 
 # The word that marks a violation in the end table: plain in a log file, and red where the
@@ -290,6 +307,11 @@ def format_summary(rec: TestbedRecord, outputs: Dict[str, str],
 
 def _seconds(v: float) -> str:
     return f"{v:.2f} s" if math.isfinite(v) else "-"
+
+
+def record_end(rec: TestbedRecord) -> float:
+    """When the run ended: the monitor's finish, else its last sample (a killed run)."""
+    return rec.finished_t if rec.finished_t is not None else _last_time(rec)
 
 
 def _last_time(rec: TestbedRecord) -> float:

@@ -43,12 +43,15 @@ def say(line: str):
 
 
 def node_processes(instances: Dict[str, str], master_uri: str,
-                   paused: Optional[Set[str]] = None) -> Dict[str, List[str]]:
+                   paused: Optional[Set[str]] = None,
+                   pids: Optional[Dict[str, List[int]]] = None) -> Dict[str, List[str]]:
     """node name -> network namespace (the /proc/PID/ns/net link) of each live process of
     this ROS system (its ROS_MASTER_URI is ours: other systems on the machine do not count).
     `instances`: each name a node's instance may run under (e.g. amcl, amcl__laptop) -> node.
     A stopped process (SIGSTOP: a paused instance, launch.pause_at_home) publishes nothing and
-    is no live one; its instance name goes into `paused`, if given."""
+    is no live one; its instance name goes into `paused`, if given. `pids`, if given, gets
+    node name -> the pid of each live process, in the order of its namespaces (the fault soak
+    signals them and reads their memory)."""
     wanted = {f"__name:={i}".encode(): n for i, n in instances.items()}
     ours = f"ROS_MASTER_URI={master_uri}".encode()
     found: Dict[str, List[str]] = {n: [] for n in set(instances.values())}
@@ -71,9 +74,12 @@ def node_processes(instances: Dict[str, str], master_uri: str,
                 if paused is not None:
                     paused.update(a.decode()[len("__name:="):] for a in args if a in wanted)
                 continue
+            netns = os.readlink(f"/proc/{pid}/ns/net")
             for a in args:
                 if a in wanted:
-                    found[wanted[a]].append(os.readlink(f"/proc/{pid}/ns/net"))
+                    found[wanted[a]].append(netns)
+                    if pids is not None:
+                        pids.setdefault(wanted[a], []).append(int(pid))
         except OSError:
             continue                    # ended while we looked
     return found
@@ -105,16 +111,40 @@ class TestbedMonitor:
                 self.tolerances[c.topic] = max(self.tolerances.get(c.topic, 0.0), c.tolerance)
         # In the record too: its violations can be read, and recomputed, without the model.
         self.rec.outputs, self.rec.tolerances = dict(self.outputs), dict(self.tolerances)
+        # The critical connections' topics as well, on request (the fault soak checks that they
+        # never run below freq_min): off by default, as every subscriber adds to the work of
+        # the publishers on the robot, whose CPU the test bed's calibration measured without.
+        if rospy.get_param("~record_critical", False):
+            for c in self.model.connections:
+                if c.tolerance == 0:
+                    self.rec.critical_freq_min[c.topic] = max(
+                        self.rec.critical_freq_min.get(c.topic, 0.0), float(c.freq_min))
         self.node_names = [n.name for n in self.model.nodes]
         self.master = rosgraph.Master(rospy.get_name())
         self.pose_topic = rospy.get_param("~pose_topic", "/amcl_pose")
         self.markers_topic = rospy.get_param("~markers_topic", "/ar_markers")
-        for topic in sorted(set(self.outputs.values())
+        for topic in sorted(set(self.outputs.values()) | set(self.rec.critical_freq_min)
                             | {self.pose_topic, self.markers_topic} - {""}):
             self.rec.receipts[topic] = []
             self.rec.senders[topic] = []
             rospy.Subscriber(topic, rospy.AnyMsg, self._on_output, callback_args=topic,
                              queue_size=50)
+        # Inputs of the moving nodes (and of what feeds them): a silence of an output is then
+        # told apart from a stall of its inputs. Off by default: each is one more subscriber
+        # that the robot's publishers serve on the robot's quota. Never a heavy stream: it
+        # would cross the robot's link to reach this recorder.
+        inputs = rospy.get_param("~record_inputs", [])
+        if not isinstance(inputs, list) or not all(isinstance(t, str) and t.startswith("/")
+                                                   for t in inputs):
+            raise SystemExit("testbed_monitor: ~record_inputs must be a list of resolved topic "
+                             f"names such as [/scan, /odom], got {inputs!r}")
+        self.rec.inputs = list(dict.fromkeys(inputs))
+        for topic in self.rec.inputs:
+            if topic in self.rec.receipts:
+                continue                    # recorded already (an output)
+            self.rec.receipts[topic] = []
+            rospy.Subscriber(topic, rospy.AnyMsg, self._on_input, callback_args=topic,
+                             queue_size=100)
         rospy.Subscriber("/anyscale/mapping", MappingMsg, self._on_mapping, queue_size=5)
         rospy.Subscriber("/anyscale/events", MigrationEvent, self._on_event, queue_size=50)
         rospy.Subscriber("/anyscale/wifi/bandwidth_mbps", Float32, self._on_bandwidth,
@@ -129,6 +159,11 @@ class TestbedMonitor:
         return time.time() - self.rec.started_wall
 
     # --- callbacks ------------------------------------------------------------------------------
+    def _on_input(self, _msg, topic):
+        now = self.now()
+        with self.lock:
+            self.rec.receipts[topic].append(now)
+
     def _on_output(self, msg, topic):
         now = self.now()
         # rospy puts the sending connection's header on each message it delivers.

@@ -61,6 +61,9 @@ class TestbedRecord:
     finished_t: Optional[float] = None
     outputs: Dict[str, str] = field(default_factory=dict)         # node -> its output topic
     tolerances: Dict[str, float] = field(default_factory=dict)    # output topic -> Δ in s
+    # The topics of critical connections (Δ 0) -> the highest freq_min among them, when the
+    # monitor records their receipts too (~record_critical, the fault soak); else empty.
+    critical_freq_min: Dict[str, float] = field(default_factory=dict)
     # silences longer than their tolerance: testbed_figures.tolerance_violations
     violations: List[Violation] = field(default_factory=list)
     # Ground truth's heading at truth's samples (t, yaw rad), for the mean |omega| of the
@@ -72,6 +75,9 @@ class TestbedRecord:
     # calibration's reference_cpu_ms. Empty / None: the quotas stayed the calibrated ones.
     cpu_normalisation: List[Tuple[float, float, float, float]] = field(default_factory=list)
     reference_cpu_ms: Optional[float] = None
+    # Inputs of the moving nodes whose receipts are in `receipts` too (the monitor's
+    # ~record_inputs): a silence's cause then says whether they kept coming.
+    inputs: List[str] = field(default_factory=list)
 
     def save(self, path: str):
         with open(path, "w") as f:

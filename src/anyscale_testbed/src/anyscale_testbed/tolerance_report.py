@@ -2,6 +2,7 @@
 read from its record.json (path time, migrations, restarts, the longest silence of each
 connection's output against its tolerance, the violations the record kept), the table, the
 total, and the CSV and Markdown copies. Pure (no ROS)."""
+import bisect
 import csv
 from dataclasses import dataclass, field
 import math
@@ -24,6 +25,11 @@ class RunRow:
     longest_s: Dict[str, float] = field(default_factory=dict)      # output topic -> silence
     tolerances: Dict[str, float] = field(default_factory=dict)     # output topic -> its Δ
     violations: List[Violation] = field(default_factory=list)
+    # Each output's rate while every node ran on one scale (the robot: its drivers are pinned
+    # there), the premise the run stood on; and the host's speed when the quotas followed it
+    # (run_testbed.py --normalise-cpu: the median ms of its fixed workload; NaN otherwise).
+    home_hz: Dict[str, float] = field(default_factory=dict)
+    host_ms: float = math.nan
     note: str = ""                  # why a figure is missing, e.g. no record
 
 
@@ -54,11 +60,31 @@ def run_row(run: int, start_goal: int, exit_code: int,
         # Like the end table: from the first message on; a topic that never spoke has none.
         row.longest_s[topic] = longest_gap(times, times[0], end) if times else math.nan
     row.violations = list(rec.violations)
+    row.home_hz = {t: rate_all_on_one_scale(rec, t, end) for t in rec.tolerances}
+    if rec.cpu_normalisation:
+        row.host_ms = statistics.median(ms for _, _, _, ms in rec.cpu_normalisation)
     if not rec.tolerances:
         row.note = "the record names no output tolerances (recorded before they were kept)"
     elif math.isnan(row.path_time_s):
         row.note = "the loop was not completed"
     return row
+
+
+def rate_all_on_one_scale(rec: TestbedRecord, topic: str, end: float,
+                          settle_s: float = 5.0, min_span_s: float = 10.0) -> float:
+    """Messages per second on `topic` over the spans in which every node ran on one scale,
+    each counted from `settle_s` after it began (a return's start-up is not the node's pace)
+    and only if it lasted `min_span_s`; NaN if there was no such span."""
+    times = sorted(rec.receipts.get(topic, []))
+    marks = [m[0] for m in rec.mappings] + [end]
+    count, span = 0, 0.0
+    for (a, mapping, _, _), b in zip(rec.mappings, marks[1:]):
+        if b - a < min_span_s or len(set(mapping.values())) != 1:
+            continue
+        a += settle_s
+        count += bisect.bisect_left(times, b) - bisect.bisect_left(times, a)
+        span += b - a
+    return count / span if span > 0 else math.nan
 
 
 def topics_of(rows: Sequence[RunRow]) -> List[str]:
@@ -78,12 +104,15 @@ def row_cells(row: RunRow, topics: Sequence[str]) -> List[str]:
     return ([str(row.run), str(row.start_goal), str(row.seed), str(row.exit_code), path,
              str(row.migrations),
              str(row.restarts)] + [silence_cell(row, t) for t in topics]
+            + [_rate(row.home_hz.get(t, math.nan)) for t in topics]
+            + ["-" if math.isnan(row.host_ms) else f"{row.host_ms:.1f}"]
             + [str(len(row.violations)), row.note])
 
 
 def header(topics: Sequence[str]) -> List[str]:
     return (["run", "start goal", "seed", "exit", "path time", "migrations", "restarts"]
-            + [f"{t} longest/tolerance" for t in topics] + ["violations", "note"])
+            + [f"{t} longest/tolerance" for t in topics]
+            + [f"{t} Hz, all on one scale" for t in topics] + ["host ms", "violations", "note"])
 
 
 def violation_line(row: RunRow, v: Violation) -> str:
@@ -133,14 +162,21 @@ def write_csv(path: str, rows: Sequence[RunRow]):
                       "restarts"]
                      + [f"longest_silence_s {t}" for t in topics]
                      + [f"tolerance_s {t}" for t in topics]
+                     + [f"hz_all_on_one_scale {t}" for t in topics] + ["host_ms"]
                      + ["violations", "violation_details", "note"])
         for r in rows:
             out.writerow([r.run, r.start_goal, r.seed, r.exit_code, _number(r.path_time_s),
                           r.migrations, r.restarts]
                          + [_number(r.longest_s.get(t, math.nan)) for t in topics]
                          + [_number(r.tolerances.get(t, math.nan)) for t in topics]
+                         + [_number(r.home_hz.get(t, math.nan)) for t in topics]
+                         + [_number(r.host_ms)]
                          + [len(r.violations),
                             " | ".join(violation_line(r, v) for v in r.violations), r.note])
+
+
+def _rate(v: float) -> str:
+    return "-" if math.isnan(v) else f"{v:.2f}"
 
 
 def _number(v: float) -> str:

@@ -1,0 +1,85 @@
+"""What the fault soak reads of /proc besides the monitor's census of the nodes
+(testbed_monitor_ros.node_processes, which it shares): every live process of a ROS system (by
+its ROS_MASTER_URI), its rosmaster, the memory and file descriptors of a process, and its
+CPU time, name and CPU cgroup. ROS-free."""
+import os
+from typing import List, Optional, Tuple
+
+from .testbed_teardown import is_alive
+
+
+def processes_with_master(master_uri: str) -> List[int]:
+    """Live processes whose environment names `master_uri` (what a test bed leaves behind if
+    its teardown missed something)."""
+    tag = f"ROS_MASTER_URI={master_uri}".encode()
+    found = []
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/environ", "rb") as f:
+                if tag not in f.read().split(b"\0"):
+                    continue
+        except OSError:
+            continue
+        if is_alive(int(pid)):
+            found.append(int(pid))
+    return sorted(found)
+
+
+def master_processes(master_uri: str) -> List[int]:
+    """The rosmaster processes of this ROS system (roscore's master, or roslaunch's)."""
+    found = []
+    for pid in processes_with_master(master_uri):
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                args = f.read().split(b"\0")
+        except OSError:
+            continue
+        if any(os.path.basename(a) == b"rosmaster" for a in args[:2]):
+            found.append(pid)
+    return found
+
+
+def memory_and_fds(pid: int) -> Optional[Tuple[float, int]]:
+    """(resident memory in MB, open file descriptors) of a process; None if it is gone."""
+    try:
+        with open(f"/proc/{pid}/statm") as f:
+            resident_pages = int(f.read().split()[1])
+        fds = len(os.listdir(f"/proc/{pid}/fd"))
+    except (OSError, IndexError, ValueError):
+        return None
+    return resident_pages * os.sysconf("SC_PAGE_SIZE") / 1e6, fds
+
+
+def cpu_usage(pid: int) -> Optional[Tuple[str, str, float]]:
+    """(name, CPU cgroup, CPU seconds used so far) of a process; None if it is gone. The name
+    is its ROS node name (__name:=) if it has one, else its program's; the cgroup is the cpu
+    controller's path ("/" outside every quota)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            fields = f.read().rsplit(b")", 1)[1].split()
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            args = [a.decode(errors="replace") for a in f.read().split(b"\0") if a]
+        with open(f"/proc/{pid}/cgroup") as f:
+            groups = [line.strip().split(":", 2) for line in f if line.count(":") >= 2]
+    except (OSError, IndexError):
+        return None
+    seconds = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")   # utime, stime
+    cgroup = next((path for _, controllers, path in groups if "cpu" in controllers.split(",")),
+                  "/")
+    return _name(args), cgroup, seconds
+
+
+def _name(args: List[str]) -> str:
+    named = [a.split(":=", 1)[1] for a in args if a.startswith("__name:=")]
+    if named:
+        return named[0]
+    if not args:
+        return "?"
+    if os.path.basename(args[0]).startswith("python"):
+        rest = args[1:]
+        for i, a in enumerate(rest):
+            if a in ("-c", "-m"):
+                return "python " + a if a == "-c" or i + 1 == len(rest) else rest[i + 1]
+            if not a.startswith("-"):
+                return os.path.basename(a)
+    return os.path.basename(args[0])

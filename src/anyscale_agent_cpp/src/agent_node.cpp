@@ -111,6 +111,8 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   topics_ = std::make_unique<TopicWatcher>(nh_, positive(pnh_, "rate_window_s", 2.0),
                                            std::max(1, param(pnh_, "topic_queue_size", 50)),
                                            param(pnh_, "watch_all", false),
+                                           positive(pnh_, "bus_stats_period_s", 0.25),
+                                           positive(pnh_, "bus_stats_timeout_s", 0.25),
                                            [this](const std::string& publisher) { endBoostAtOutput(publisher); });
   std::string error;
   if (!topics_->setWatched(param(pnh_, "watched_topics", std::vector<std::string>{}), {}, &error))
@@ -230,12 +232,17 @@ void AgentNode::onSupervise(const ros::SteadyTimerEvent&)
   keepStandbysReady();
 }
 
-std::set<std::string> AgentNode::runningNodes() const
+std::map<std::string, TopicWatcher::RunningNode> AgentNode::runningNodes() const
 {
-  std::set<std::string> out;
+  std::map<std::string, TopicWatcher::RunningNode> out;
   for (const auto& p : supervisor_.snapshot())
     if (p.pid != 0 && p.state != ProcState::Standby)
-      out.insert(p.name);
+    {
+      std::string instance = rosName(p.name);
+      if (instance.empty() || instance[0] != '/')
+        instance.insert(0, "/");
+      out[p.name] = { instance, p.pid, p.state == ProcState::Paused };
+    }
   return out;
 }
 

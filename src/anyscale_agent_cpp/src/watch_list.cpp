@@ -40,6 +40,19 @@ std::set<std::string> WatchList::toCount(const std::set<std::string>& graph_loca
   return out;
 }
 
+std::map<std::string, std::string> WatchList::runningSubscribers(const std::set<std::string>& running) const
+{
+  std::map<std::string, std::string> out;
+  for (const auto& [topic, subs] : subscribers_)
+    for (const auto& node : subs)
+      if (running.count(node))
+      {
+        out[topic] = node;
+        break;
+      }
+  return out;
+}
+
 std::vector<std::string> WatchList::topics() const
 {
   std::vector<std::string> out;

@@ -64,7 +64,8 @@ private:
   void onSupervise(const ros::SteadyTimerEvent&);   // reaping, signal escalation, leases, standbys
   void onGraph(const ros::SteadyTimerEvent&);       // master queries: registration, local topics
   void onGraphQueries();
-  std::set<std::string> runningNodes() const;        // declared names of the processes that run here
+  // The processes that run here (declared name -> name under which it runs here, process group).
+  std::map<std::string, TopicWatcher::RunningNode> runningNodes() const;
   // Status (agent_status.cpp).
   void onSample(const ros::SteadyTimerEvent&);      // /proc, topics, link -> /anyscale/status
   void onUplink(const ros::SteadyTimerEvent&);      // carrier of ~uplink_interface; status on change

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "anyscale_agent_cpp/bus_stats_poller.h"
 #include "anyscale_agent_cpp/rate_window.h"
 #include "anyscale_agent_cpp/watch_list.h"
 
@@ -38,10 +39,13 @@ public:
   // Called with each message's publisher (its caller id), in the transport thread; keep it short.
   using PublisherSeen = std::function<void(const std::string& publisher)>;
 
-  // Subscriptions use topic_tools::ShapeShifter, so nothing is deserialised: the counter sees
-  // the serialized size, the receipt time and the publisher only.
-  TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all,
-               PublisherSeen on_publisher = {});
+  // A watched topic that a node this agent runs subscribes to (by the model) is counted from
+  // that node's own getBusStats, polled every `bus_stats_period_s` (BusStatsPoller): a second
+  // subscription would carry the topic across the link twice. Any other counted topic gets a
+  // subscription of the agent's, with topic_tools::ShapeShifter, so nothing is deserialised:
+  // the counter sees the serialized size, the receipt time and the publisher only.
+  TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all, double bus_stats_period_s,
+               double bus_stats_timeout_s, PublisherSeen on_publisher = {});
 
   // The topics to watch (resolved names), each with the node on this scale that subscribes
   // to it in the model (`subscribers`: empty, or one per topic; see WatchList). Names are
@@ -54,9 +58,16 @@ public:
   // rest (WatchList::toCount): subscribing here to a topic no local node uses would pull its
   // data across the link only to count it. `update` gives what the master's graph shows (graph
   // thread); `setRunning` the nodes this agent runs (fully qualified), which needs no master
-  // to know. It changes the subscriptions only if `may_call_master()` (see renewSilent).
+  // to know. It changes the subscriptions only if `may_call_master()` (see renewSilent); what is
+  // counted from bus statistics changes at once (no master involved).
+  struct RunningNode
+  {
+    std::string instance;  // the name it runs under here (the master's), fully qualified
+    int pid = 0;           // its process group
+    bool paused = false;   // SIGSTOPped: it receives nothing, its bus statistics say nothing
+  };
   void update(const std::set<std::string>& local_topics);
-  void setRunning(const std::set<std::string>& running, const std::function<bool()>& may_call_master);
+  void setRunning(const std::map<std::string, RunningNode>& running, const std::function<bool()>& may_call_master);
 
   std::vector<anyscale_msgs::TopicStatistics> stats(const ros::Time& now);
 
@@ -80,6 +91,19 @@ private:
     ros::Subscriber sub;
   };
   void subscribe(const std::string& topic, const std::shared_ptr<Counter>& c);
+  // What is counted how, from the watch list, the graph, the nodes run here and the nodes whose
+  // bus statistics are refused (under mutex_).
+  struct Plan
+  {
+    std::set<std::string> subscribed;
+    std::map<std::string, BusStatsPoller::Node> polled;  // every topic a running node subscribes to
+    std::set<std::string> by_bus;                        // those of them counted from bus stats
+    std::map<std::string, std::string> refused;          // topic -> why its node's stats are refused
+  };
+  Plan plan() const;
+  void applyBus();  // no master call
+  std::mutex applying_bus_;
+  std::string describeLocked() const;
 
   InlineCallbackQueue inline_queue_;
   ros::NodeHandle nh_;
@@ -91,12 +115,15 @@ private:
   // stats() never waits for them under mutex_.
   std::mutex subscribing_;
   mutable std::mutex mutex_;
-  void apply();  // subscribes and unsubscribes to match the watch list
+  void apply();  // both: subscribes and unsubscribes to match the watch list
 
   WatchList watched_;
   std::set<std::string> local_topics_;
-  std::set<std::string> running_;
+  std::set<std::string> running_;                      // declared names, for WatchList::toCount
+  std::map<std::string, RunningNode> running_nodes_;   // declared name ->
   std::map<std::string, std::shared_ptr<Counter>> counters_;  // subscribed topics only
+  std::map<std::string, std::string> by_bus_;          // topic -> node, counted from its bus stats
+  std::unique_ptr<BusStatsPoller> poller_;
 };
 
 }  // namespace anyscale_agent

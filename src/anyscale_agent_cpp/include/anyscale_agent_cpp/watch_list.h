@@ -35,6 +35,11 @@ public:
   std::set<std::string> toCount(const std::set<std::string>& graph_local, const std::set<std::string>& running,
                                 bool watch_all) const;
 
+  // The watched topics that a node this agent runs subscribes to by the model, each with that
+  // node (the first by name where several do): they are counted from the node's own bus
+  // statistics, with no subscription of the agent's (see BusStatsRate).
+  std::map<std::string, std::string> runningSubscribers(const std::set<std::string>& running) const;
+
   std::vector<std::string> topics() const;
 
 private:

@@ -307,7 +307,12 @@ void AgentNode::onGraphQueries()
     leases_.remove(name);
   }
   if (const auto local = graph_.localSubscribedTopics(own))
+  {
+    // The nodes run here first: a topic one of them subscribes to is counted from its bus
+    // statistics, and the graph showing that subscription must not start a second one.
+    topics_->setRunning(runningNodes(), [] { return false; });
     topics_->update(*local);
+  }
 }
 
 }  // namespace anyscale_agent

@@ -65,9 +65,9 @@ std::set<uint64_t> socketInodes(int pid, const std::string& proc_root)
 
 }  // namespace
 
-std::vector<TcpEntry> parseProcNetTcp(const std::string& text, bool v6)
+std::vector<LocalTcpEntry> parseLocalTcpEntries(const std::string& text, bool v6)
 {
-  std::vector<TcpEntry> out;
+  std::vector<LocalTcpEntry> out;
   std::istringstream in(text);
   std::string line;
   while (std::getline(in, line))
@@ -82,7 +82,7 @@ std::vector<TcpEntry> parseProcNetTcp(const std::string& text, bool v6)
       continue;
     try
     {
-      TcpEntry e;
+      LocalTcpEntry e;
       e.address = v6 ? ipv6(local.substr(0, colon)) : ipv4(uint32_t(std::stoul(local.substr(0, colon), nullptr, 16)));
       e.port = int(std::stoul(local.substr(colon + 1), nullptr, 16));
       e.state = int(std::stoul(state, nullptr, 16));
@@ -106,10 +106,10 @@ std::vector<ListeningSocket> listeningSockets(const std::vector<int>& pids, cons
     const std::set<uint64_t> inodes = socketInodes(pid, proc_root);
     if (inodes.empty())
       continue;
-    std::vector<TcpEntry> entries;
+    std::vector<LocalTcpEntry> entries;
     for (const bool v6 : { false, true })
       if (const auto text = readFile(proc_root + "/" + std::to_string(pid) + (v6 ? "/net/tcp6" : "/net/tcp")))
-        for (auto& e : parseProcNetTcp(*text, v6))
+        for (auto& e : parseLocalTcpEntries(*text, v6))
           if (inodes.count(e.inode))
             entries.push_back(e);
     std::set<int> established_ports;

@@ -8,8 +8,8 @@
 namespace anyscale_agent
 {
 
-// One line of /proc/net/tcp or tcp6.
-struct TcpEntry
+// The local side of one line of /proc/net/tcp or tcp6 (stuck_connections.h reads the remote side).
+struct LocalTcpEntry
 {
   std::string address;  // dotted IPv4 ("0.0.0.0"); IPv6 as "::", "::1" or an IPv4-mapped one as IPv4
   int port = 0;
@@ -18,7 +18,7 @@ struct TcpEntry
 };
 // Lines it cannot read are skipped (the header among them). IPv6 addresses other than the
 // unspecified, loopback and IPv4-mapped ones are given as "" (not reachable as written here).
-std::vector<TcpEntry> parseProcNetTcp(const std::string& text, bool ipv6);
+std::vector<LocalTcpEntry> parseLocalTcpEntries(const std::string& text, bool ipv6);
 
 struct ListeningSocket
 {

@@ -66,6 +66,10 @@ def parse_args(argv):
                         "one (this shared VM's speed drifts: AMCL with every node home ran "
                         "3.18-1.77 Hz in 7 runs at the same quota); see run_testbed.py --help. "
                         "Off by default; its first validation cut the robot by 40 %%: see the anyscale_testbed README")
+    p.add_argument("--robot-cpu", type=float, default=None, metavar="CORES",
+                   help="run_testbed.py --robot-cpu: the robot's CPU quota (default: the "
+                        "calibration file's). This host's speed drifts; bench_premise.py finds "
+                        "the quota at which AMCL runs its 2 Hz with every node home today")
     p.add_argument("--record-inputs", default=DEFAULT_INPUTS, metavar="TOPICS",
                    help="run_testbed.py --record-inputs: the inputs whose gaps each violation's "
                         f"cause names (default: {DEFAULT_INPUTS}, the small topics that feed AMCL; "
@@ -75,6 +79,8 @@ def parse_args(argv):
     args = p.parse_args(argv)
     if args.runs < 1:
         p.error("--runs: at least 1")
+    if args.robot_cpu is not None and not 0.05 <= args.robot_cpu <= 2.0:
+        p.error(f"--robot-cpu: expected 0.05 to 2 cores, got {args.robot_cpu}")
     if args.first_seed < 1:
         p.error(f"--first-seed: expected >= 1 (0 is the unvaried model), got {args.first_seed}")
     return args
@@ -99,6 +105,7 @@ def run_argv(args, start_goal: int, seed: int, out_dir: str):
              "--seed", str(seed), "--allocator", args.allocator, "--start-goal", str(start_goal),
              "--duration", str(args.duration), "--out", out_dir]
             + (["--normalise-cpu"] if args.normalise_cpu else [])
+            + (["--robot-cpu", str(args.robot_cpu)] if args.robot_cpu is not None else [])
             + (["--record-inputs", args.record_inputs] if args.record_inputs else []))
 
 

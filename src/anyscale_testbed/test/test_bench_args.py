@@ -41,6 +41,15 @@ def test_the_tolerance_bench_passes_normalise_cpu_only_when_asked_for(tolerances
     assert argv.count("--normalise-cpu") == 1 and argv[argv.index("--out") + 1] == "out/run01"
 
 
+def test_the_tolerance_bench_sets_the_robot_quota_only_when_asked_for(tolerances, capsys):
+    assert "--robot-cpu" not in tolerances.run_argv(tolerances.parse_args([]), 0, 11, "out/run01")
+    argv = tolerances.run_argv(tolerances.parse_args(["--robot-cpu", "0.27"]), 0, 11, "out/run01")
+    assert argv[argv.index("--robot-cpu") + 1] == "0.27"
+    with pytest.raises(SystemExit) as ended:
+        tolerances.parse_args(["--robot-cpu", "0"])
+    assert ended.value.code == 2 and "--robot-cpu: expected 0.05 to 2 cores, got 0.0" in capsys.readouterr().err
+
+
 def test_the_premise_bench_passes_normalise_cpu_only_when_asked_for(premise):
     assert premise.parse_args([]).normalise_cpu is False
     assert premise.parse_args(["--normalise-cpu"]).normalise_cpu is True

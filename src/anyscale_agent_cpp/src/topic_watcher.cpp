@@ -33,9 +33,14 @@ void InlineCallbackQueue::removeByID(uint64_t)
   // Nothing is ever held here.
 }
 
-TopicWatcher::TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all,
+TopicWatcher::TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all, bool by_bus_stats,
                            double bus_stats_period_s, double bus_stats_timeout_s, PublisherSeen on_publisher)
-  : nh_(nh), window_s_(window_s), queue_size_(queue_size), watch_all_(watch_all), on_publisher_(std::move(on_publisher))
+  : nh_(nh)
+  , window_s_(window_s)
+  , queue_size_(queue_size)
+  , watch_all_(watch_all)
+  , by_bus_stats_(by_bus_stats)
+  , on_publisher_(std::move(on_publisher))
 {
   nh_.setCallbackQueue(&inline_queue_);
   poller_ = std::make_unique<BusStatsPoller>(window_s, bus_stats_period_s, bus_stats_timeout_s,
@@ -152,7 +157,7 @@ TopicWatcher::Plan TopicWatcher::plan() const
   for (const auto& [name, node] : running_nodes_)
     if (!node.paused && node.pid > 0)
       receiving.insert(name);
-  for (const auto& [topic, name] : watched_.runningSubscribers(receiving))
+  for (const auto& [topic, name] : watched_.runningSubscribers(by_bus_stats_ ? receiving : std::set<std::string>{}))
   {
     const RunningNode& node = running_nodes_.at(name);
     p.polled[topic] = { node.instance, node.pid };

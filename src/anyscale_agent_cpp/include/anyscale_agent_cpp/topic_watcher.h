@@ -44,8 +44,10 @@ public:
   // subscription would carry the topic across the link twice. Any other counted topic gets a
   // subscription of the agent's, with topic_tools::ShapeShifter, so nothing is deserialised:
   // the counter sees the serialized size, the receipt time and the publisher only.
-  TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all, double bus_stats_period_s,
-               double bus_stats_timeout_s, PublisherSeen on_publisher = {});
+  // `by_bus_stats` false: every counted topic by a subscription, none from a node's bus
+  // statistics (see the agent's ~count_by_bus_stats).
+  TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all, bool by_bus_stats,
+               double bus_stats_period_s, double bus_stats_timeout_s, PublisherSeen on_publisher = {});
 
   // The topics to watch (resolved names), each with the node on this scale that subscribes
   // to it in the model (`subscribers`: empty, or one per topic; see WatchList). Names are
@@ -110,6 +112,7 @@ private:
   double window_s_;
   int queue_size_;
   bool watch_all_;
+  bool by_bus_stats_;
   PublisherSeen on_publisher_;
   // Held across subscribing and unsubscribing (calls to the master, which may wait), so that
   // stats() never waits for them under mutex_.

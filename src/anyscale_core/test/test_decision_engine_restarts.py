@@ -7,8 +7,8 @@ import pytest
 
 from anyscale_core.allocators import make_allocator
 from anyscale_core.characterisation import characterise
-from anyscale_core.decision_engine import (DecisionEngine, DecisionParams, StartNode,
-                                           pose_handoff_params)
+from anyscale_core.decision_engine import DecisionEngine
+from anyscale_core.decision_types import DecisionParams, StartNode, pose_handoff_params
 from anyscale_core.restart_backoff import BackoffParams, RestartBackoff
 
 from decision_reports import PAPER, reports

@@ -17,8 +17,14 @@ turns on the spot and waits at goals, where no rule limits it). Results in
 DIR/premise.md and DIR/premise.csv. Run with the workspace sourced:
     sudo -E /usr/bin/python3 tests/bench/bench_premise.py --robot-cpu 0.28,0.32 --duration 150
     sudo -E /usr/bin/python3 tests/bench/bench_premise.py --cases robot --normalise-cpu
+    sudo -E /usr/bin/python3 tests/bench/bench_premise.py --cases robot --cfs-period-ms 100,10
+
+Each run also records /joint_states (the odometer's 40 Hz stream, a critical connection with a
+0.2 s limit) and prints its longest gap: the robot's quota must starve AMCL, not stall the
+drivers (--cfs-period-ms, a shorter CFS period than the kernel's 100 ms).
 """
 import argparse
+import itertools
 import csv
 import datetime
 import os
@@ -27,7 +33,8 @@ import sys
 import time
 
 try:
-    from anyscale_testbed.premise_figures import COLUMNS, format_markdown, premise_figures
+    from anyscale_testbed.premise_figures import (COLUMNS, format_markdown, longest_gap_after,
+                                                  premise_figures)
     from anyscale_testbed.bench_runs import latest_record, run_logged, start_on_the_testbed
 except ImportError as e:
     sys.exit(f"{os.path.basename(__file__)}: {e}: source this workspace first "
@@ -53,6 +60,9 @@ def parse_args(argv):
                         "host's speed; see its --help), and the host-speed workload's median "
                         "ms printed per run: whether the premise then holds whatever the host's "
                         "speed is what this checks. Off by default")
+    p.add_argument("--cfs-period-ms", default="100",
+                   help="comma-separated CFS periods of the quotas in ms, each run with every "
+                        "quota (run_testbed.py --cfs-period-ms; default 100, the kernel's)")
     p.add_argument("--out", default=None,
                    help="results directory (default: results/bench_premise/<date-time>)")
     args = p.parse_args(argv)
@@ -63,6 +73,12 @@ def parse_args(argv):
         p.error(f"--robot-cpu: expected cores like 0.28,0.32, got {args.robot_cpu!r}")
     if any(q is not None and q <= 0 for q in args.quotas):
         p.error("--robot-cpu: quotas must be > 0")
+    try:
+        args.periods = [float(v) for v in args.cfs_period_ms.split(",") if v.strip()]
+    except ValueError:
+        p.error(f"--cfs-period-ms: expected ms like 100,10, got {args.cfs_period_ms!r}")
+    if not args.periods or any(not 1 <= v <= 1000 for v in args.periods):
+        p.error(f"--cfs-period-ms: expected 1 to 1000 ms each, got {args.cfs_period_ms!r}")
     args.cases = [c.strip() for c in args.cases.split(",") if c.strip()]
     if not args.cases or set(args.cases) - set(LINKS):
         p.error(f"--cases: expected robot and/or laptop, got {args.cases!r}")
@@ -71,15 +87,13 @@ def parse_args(argv):
     return args
 
 
-def run_argv(quota, case: str, duration: float, out_dir: str, normalise_cpu: bool = False):
+def run_argv(quota, case: str, duration: float, out_dir: str, normalise_cpu: bool = False,
+             period_ms: float = 100.0):
     argv = [sys.executable, RUN_TESTBED, "--world", "office_floor", "--link", "schedule",
-            "--schedule", LINKS[case], "--duration", str(duration), "--out", out_dir]
+            "--schedule", LINKS[case], "--duration", str(duration), "--out", out_dir,
+            "--cfs-period-ms", f"{period_ms:g}", "--record-inputs", "/joint_states"]
     return (argv + ([] if quota is None else ["--robot-cpu", str(quota)])
             + (["--normalise-cpu"] if normalise_cpu else []))
-
-
-def run_once(quota, case: str, duration: float, out_dir: str, normalise_cpu: bool = False) -> int:
-    return run_logged(run_argv(quota, case, duration, out_dir, normalise_cpu), out_dir)
 
 
 def host_speed_line(rec) -> str:
@@ -100,23 +114,31 @@ def main(argv=None) -> int:
     start_on_the_testbed("bench")
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     out = os.path.abspath(args.out or os.path.join(ROOT, "results", "bench_premise", stamp))
-    runs = [(q, c) for q in args.quotas for c in args.cases]
+    runs = list(itertools.product(args.quotas, args.periods, args.cases))
     print(f"bench: {len(runs)} runs of {args.duration:.0f} s (about "
           f"{len(runs) * (args.duration + 25) / 60:.0f} min); results in {out}", flush=True)
     rows = []
     try:
-        for k, (quota, case) in enumerate(runs):
+        for k, (quota, period, case) in enumerate(runs):
             label = "calibrated" if quota is None else f"{quota:g}"
-            run_dir = os.path.join(out, f"{k + 1:02d}-{label}-{case}")
-            print(f"[{k + 1}/{len(runs)}] robot quota {label}, {case} run", flush=True)
+            run_dir = os.path.join(out, f"{k + 1:02d}-{label}-{period:g}ms-{case}")
+            print(f"[{k + 1}/{len(runs)}] robot quota {label} per {period:g} ms, {case} run",
+                  flush=True)
             began = time.monotonic()
-            code = run_once(quota, case, args.duration, run_dir, args.normalise_cpu)
+            code = run_logged(run_argv(quota, case, args.duration, run_dir, args.normalise_cpu,
+                                       period), run_dir)
             rec = latest_record(run_dir)
             figures = premise_figures(rec, args.skip) if rec else []
             if rec and host_speed_line(rec):
                 print(host_speed_line(rec), flush=True)
+            odometer_gap = longest_gap_after(rec.receipts.get("/joint_states", []), args.skip) \
+                if rec else float("nan")
+            if rec:
+                print(f"    /joint_states longest gap {odometer_gap:.3f} s (limit 0.2 s)",
+                      flush=True)
             for f in figures:
-                rows.append({"quota": label, "case": case, **f})
+                rows.append({"quota": label, "period_ms": f"{period:g}", "case": case,
+                             "joint_states_longest_gap_s": odometer_gap, **f})
                 print(f"    {f['configuration']:<28} {f['seconds']:4.0f} s  AMCL "
                       f"{f['amcl_hz']:.2f} Hz (longest gap {f['amcl_longest_gap_s']:.2f} s)  "
                       f"speed mean {f['mean_speed']:.3f} cruise {f['cruise_speed']:.3f} m/s",

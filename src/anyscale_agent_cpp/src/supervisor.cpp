@@ -223,11 +223,17 @@ void Supervisor::reapLocked()
           node_exited |= slots == &records_;
         }
   }
-  // Adopted nodes are not our children: waitpid() never reports them.
+  // Adopted nodes are not our children, unless their agent died while it was our ancestor (the
+  // subreaper flag): then one that exited after the loop above is reaped here, with its status.
   for (auto& [name, r] : records_)
     if (isAlive(r) && r.info.adopted && adoptedExited(r))
     {
-      recordExitLocked(name, r, -1, 0);
+      int status = 0;
+      if (::waitpid(r.info.pid, &status, WNOHANG) == r.info.pid)
+        recordExitLocked(name, r, WIFEXITED(status) ? WEXITSTATUS(status) : -1,
+                         WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+      else
+        recordExitLocked(name, r, -1, 0);
       node_exited = true;
     }
   if (node_exited)

@@ -15,6 +15,7 @@
 #include <thread>
 #include <vector>
 
+#include "anyscale_agent_cpp/proc_reader.h"
 #include "anyscale_agent_cpp/supervisor.h"
 
 namespace supervisor_test
@@ -66,6 +67,43 @@ inline bool processGone(int pid)
 inline bool groupGone(int pgid)
 {
   return ::kill(-pgid, 0) != 0 && errno == ESRCH;
+}
+
+// The state letter of /proc/PID/stat ('T' stopped, 'S' sleeping, 'D' uninterruptible), '?' if gone.
+inline char procState(int pid)
+{
+  const auto stat = anyscale_agent::parseProcStat(
+      anyscale_agent::readFile("/proc/" + std::to_string(pid) + "/stat").value_or(""));
+  return stat ? stat->state : '?';
+}
+
+// Whether every process of group `pgid` is stopped. A member that was in vfork() when SIGSTOP
+// came waits in 'D' for its child, itself stopped before its exec, and runs no more than a
+// stopped process does: dash runs each command so, and 13 of 400 SIGSTOPs of a shell loop found
+// it there (the pause test failed now and then on waiting for 'T' alone).
+inline bool groupStopped(int pgid)
+{
+  std::vector<anyscale_agent::ProcStat> members;
+  for (const auto& entry : std::filesystem::directory_iterator("/proc"))
+  {
+    const std::string name = entry.path().filename();
+    if (name.find_first_not_of("0123456789") != std::string::npos)
+      continue;
+    const auto stat =
+        anyscale_agent::parseProcStat(anyscale_agent::readFile(entry.path().string() + "/stat").value_or(""));
+    if (stat && stat->pgrp == pgid)
+      members.push_back(*stat);
+  }
+  auto stoppedChild = [&](int parent) {
+    for (const auto& m : members)
+      if (m.ppid == parent && m.state == 'T')
+        return true;
+    return false;
+  };
+  for (const auto& m : members)
+    if (m.state != 'T' && !(m.state == 'D' && stoppedChild(m.pid)))
+      return false;
+  return !members.empty();
 }
 
 inline std::vector<std::string> sh(const std::string& script)

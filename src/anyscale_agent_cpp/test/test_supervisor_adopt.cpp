@@ -115,11 +115,6 @@ void writeState(const std::string& path, const std::vector<NodeStateEntry>& node
   ASSERT_TRUE(writeNodeStateFile(path, s, &err)) << err;
 }
 
-char procState(int pid)
-{
-  const auto stat = parseProcStat(anyscale_agent::readFile("/proc/" + std::to_string(pid) + "/stat").value_or(""));
-  return stat ? stat->state : '?';
-}
 }  // namespace
 
 class SupervisorAdopt : public ::testing::TestWithParam<bool>  // pidfd, or the /proc fallback

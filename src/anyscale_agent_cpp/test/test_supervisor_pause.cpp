@@ -4,7 +4,6 @@
 #include <unistd.h>
 
 #include <chrono>
-#include <fstream>
 #include <string>
 #include <thread>
 
@@ -16,15 +15,6 @@ using namespace supervisor_test;
 
 namespace
 {
-// The state letter of /proc/PID/stat: 'T' for a stopped process.
-char procState(int pid)
-{
-  std::ifstream f("/proc/" + std::to_string(pid) + "/stat");
-  std::string stat((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  const auto close = stat.rfind(')');
-  return close == std::string::npos || close + 2 >= stat.size() ? '?' : stat[close + 2];
-}
-
 std::size_t fileSize(const std::string& path)
 {
   return supervisor_test::readFile(path).size();
@@ -44,7 +34,7 @@ TEST(SupervisorPause, APausedNodeDoesNothingAndResumesWhereItWas)
 
   ASSERT_TRUE(s.pause("ticker", &err)) << err;
   EXPECT_EQ(s.info("ticker")->state, ProcState::Paused);
-  ASSERT_TRUE(waitUntil([&] { return procState(pid) == 'T'; }, 2.0, s)) << "state " << procState(pid);
+  ASSERT_TRUE(waitUntil([&] { return groupStopped(pid); }, 2.0, s)) << "leader's state " << procState(pid);
   const std::size_t paused_at = fileSize(ticks);
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   s.poll();

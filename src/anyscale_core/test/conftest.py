@@ -5,7 +5,8 @@ import yaml
 
 from anyscale_core.allocators import make_allocator
 from anyscale_core.characterisation import characterise
-from anyscale_core.decision_engine import DecisionEngine, DecisionParams
+from anyscale_core.decision_engine import DecisionEngine
+from anyscale_core.decision_types import DecisionParams
 from anyscale_core.model_loader import load_model
 
 from core_test_data import TESTBED

@@ -2,7 +2,7 @@
 reports made up for a moment, every Table I topic healthy unless told otherwise, the paper's
 decision parameters and which nodes run away from the robot. Their `engine` fixture is in
 conftest.py."""
-from anyscale_core.decision_engine import DecisionParams, ScaleReport
+from anyscale_core.decision_types import DecisionParams, ScaleReport
 
 # Every Table I topic at its optimal rate.
 HEALTHY = {"/scan": 10.0, "/joint_states": 40.0, "/wheel_ticks": 40.0,

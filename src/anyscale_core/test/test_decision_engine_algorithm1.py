@@ -3,7 +3,7 @@
 T, critical nodes never moving, and Eq. 2 growing with better mappings."""
 import pytest
 
-from anyscale_core.decision_engine import RenewLeases, StartNode, StopNode
+from anyscale_core.decision_types import RenewLeases, StartNode, StopNode
 
 from decision_reports import remote, reports
 

@@ -7,7 +7,8 @@ import math
 import pytest
 
 from anyscale_core.allocators import make_allocator
-from anyscale_core.decision_engine import DecisionEngine, DecisionParams, StopNode
+from anyscale_core.decision_engine import DecisionEngine
+from anyscale_core.decision_types import DecisionParams, StopNode
 
 from decision_reports import remote, reports
 

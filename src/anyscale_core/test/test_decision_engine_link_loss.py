@@ -3,7 +3,7 @@ its nodes back with best-effort stops; a lost uplink carrier brings them back at
 nothing across it."""
 import dataclasses
 
-from anyscale_core.decision_engine import RenewLeases, StartNode, StopNode
+from anyscale_core.decision_types import RenewLeases, StartNode, StopNode
 
 from decision_reports import remote, reports
 

@@ -4,7 +4,8 @@ is stopped as before."""
 
 from anyscale_core.allocators import make_allocator
 from anyscale_core.characterisation import characterise
-from anyscale_core.decision_engine import DecisionEngine, DecisionParams, StopNode
+from anyscale_core.decision_engine import DecisionEngine
+from anyscale_core.decision_types import DecisionParams, StopNode
 from anyscale_core.model_loader import parse_model
 
 from decision_reports import reports

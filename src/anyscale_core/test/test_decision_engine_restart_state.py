@@ -13,7 +13,8 @@ import math
 import pytest
 
 from anyscale_core.allocators import make_allocator
-from anyscale_core.decision_engine import DecisionEngine, DecisionParams
+from anyscale_core.decision_engine import DecisionEngine
+from anyscale_core.decision_types import DecisionParams
 from anyscale_core import decision_ros
 from anyscale_core.restart_state import RestartState, RestartStateError, decode, encode
 

@@ -6,8 +6,9 @@ import dataclasses
 import pytest
 
 from anyscale_core.allocators import make_allocator
-from anyscale_core.decision_engine import (DecisionEngine, DecisionParams, StartNode,
-                                           pose_handoff_params)
+from anyscale_core.characterisation import characterise
+from anyscale_core.decision_engine import DecisionEngine
+from anyscale_core.decision_types import DecisionParams, StartNode, pose_handoff_params
 from anyscale_core.restart_backoff import BackoffParams, RestartBackoff
 
 from decision_reports import PAPER, reports
@@ -23,12 +24,46 @@ def test_a_node_that_failed_where_it_runs_is_started_there_again(engine, testbed
     assert StartNode("ekf", "robot", (), 0.0) in result.actions
     assert "ended on robot: signal 11" in [e.reason for e in result.events if e.node == "ekf"]
     # A remote node is started again on its remote scale, with a lease and its last state.
-    engine.observe_handoff("amcl", pose_handoff_params(1.0, 2.0, 0.5, 0.1, 0.1, 0.05, 8.0))
+    plain = dataclasses.replace(testbed_ch.model.node("amcl").launch, pause_at_home=False)
+    e = engine_with_amcl_launch(testbed_ch, plain)
+    e.tick(reports(1.0), 1.0)
+    e.observe_handoff("amcl", pose_handoff_params(1.0, 2.0, 0.5, 0.1, 0.1, 0.05, 8.0))
     r = reports(10.0)
     r["laptop"] = dataclasses.replace(r["laptop"], ended={"amcl": "exit code 1"})
-    restart = [a for a in engine.tick(r, 10.0).actions if isinstance(a, StartNode)]
+    restart = [a for a in e.tick(r, 10.0).actions if isinstance(a, StartNode) and a.node == "amcl"]
     assert [(a.node, a.scale, a.lease_s) for a in restart] == [("amcl", "laptop", 3.0)]
     assert dict(restart[0].param_overrides)["initial_pose_x"] == 1.0
+
+
+def engine_with_amcl_launch(testbed_ch, launch):
+    nodes = [dataclasses.replace(n, launch=launch) if n.name == "amcl" else n
+             for n in testbed_ch.model.nodes]
+    ch = characterise(dataclasses.replace(testbed_ch.model, nodes=nodes))
+    e = DecisionEngine(ch, make_allocator("paper"),
+                       DecisionParams(bandwidth_hold_s=0.0, startup_grace_s=0.0))
+    e.adopt_or_start(reports(0.0), 0.0)
+    return e
+
+
+def test_a_node_paused_at_home_that_fails_out_there_comes_home_and_stays_for_t(engine):
+    engine.tick(reports(1.0), 1.0)
+    assert engine.mapping()["amcl"] == "laptop"
+    engine.observe_handoff("amcl", pose_handoff_params(1.0, 2.0, 0.5, 0.1, 0.1, 0.05, 8.0))
+    r = reports(10.0, laptop_running=("ar_recognition",))
+    r["laptop"] = dataclasses.replace(r["laptop"], ended={"amcl": "signal 11"})
+    result = engine.tick(r, 10.0)
+    starts = [a for a in result.actions if isinstance(a, StartNode) and a.node == "amcl"]
+    assert [(a.scale, a.lease_s) for a in starts] == [("robot", 0.0)]
+    assert dict(starts[0].param_overrides)["initial_pose_x"] == 1.0
+    [event] = [e for e in result.events if e.node == "amcl"]
+    assert (event.kind, event.from_scale, event.to_scale) == ("migrate_back", "laptop", "robot")
+    assert "ended on laptop: signal 11; its paused instance at home resumed" in event.reason
+    assert engine.mapping()["amcl"] == "robot"
+    # The allocator would move it out again at once; T holds it home (the paper's hysteresis).
+    assert engine.tick(reports(15.0, laptop_running=("ar_recognition",)), 15.0).events == []
+    assert engine.mapping()["amcl"] == "robot"
+    moved = engine.tick(reports(20.5, laptop_running=("ar_recognition",)), 20.5)
+    assert [(e.kind, e.node) for e in moved.events] == [("migrate", "amcl")]
 
 
 def crashed_ekf_restarts(e, t, starting=frozenset(), moves_allowed=True):

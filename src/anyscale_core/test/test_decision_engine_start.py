@@ -2,7 +2,8 @@
 configuration), a restarted engine adopting what runs, no moves until the initial configuration
 is up, and starts that carry the node's last pose (state hand-off)."""
 from anyscale_core.allocators import make_allocator
-from anyscale_core.decision_engine import DecisionEngine, StartNode, pose_handoff_params
+from anyscale_core.decision_engine import DecisionEngine
+from anyscale_core.decision_types import StartNode, pose_handoff_params
 
 from decision_reports import HEALTHY, PAPER, remote, reports
 

@@ -6,7 +6,8 @@ import math
 import pytest
 
 from anyscale_core.allocators import make_allocator
-from anyscale_core.decision_engine import DecisionEngine, DecisionParams, effective_rate
+from anyscale_core.decision_engine import DecisionEngine
+from anyscale_core.decision_types import DecisionParams, effective_rate
 
 from decision_reports import remote, reports
 

@@ -15,7 +15,7 @@ import pytest
 import yaml
 
 from anyscale_core.cli import main
-from anyscale_core.decision_ros import ParamError, prepare_decision
+from anyscale_core.decision_params import ParamError, prepare_decision
 from anyscale_core.model import ModelError
 
 from core_test_data import TESTBED

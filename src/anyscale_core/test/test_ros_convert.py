@@ -11,7 +11,7 @@ from anyscale_msgs.msg import (LinkStatistics, MigrationEvent, NodeProcess,  # n
 from geometry_msgs.msg import PoseWithCovarianceStamped  # noqa: E402
 
 from anyscale_core import ros_convert as conv  # noqa: E402
-from anyscale_core.decision_ros import ParamError, read_params  # noqa: E402
+from anyscale_core.decision_params import ParamError, read_params  # noqa: E402
 
 
 def status(scale="laptop", is_master=False, **kw):

@@ -55,8 +55,20 @@ def test_the_premise_bench_passes_normalise_cpu_only_when_asked_for(premise):
     assert premise.parse_args(["--normalise-cpu"]).normalise_cpu is True
     argv = premise.run_argv(0.34, "robot", 150.0, "out/01")
     assert "--normalise-cpu" not in argv and argv[argv.index("--robot-cpu") + 1] == "0.34"
+    assert argv[argv.index("--cfs-period-ms") + 1] == "100"
+    assert argv[argv.index("--record-inputs") + 1] == "/joint_states"
+    argv = premise.run_argv(0.34, "robot", 150.0, "out/01", period_ms=10.0)
+    assert argv[argv.index("--cfs-period-ms") + 1] == "10"
     argv = premise.run_argv(None, "robot", 150.0, "out/01", normalise_cpu=True)
     assert argv.count("--normalise-cpu") == 1 and "--robot-cpu" not in argv
+
+
+def test_the_premise_bench_runs_each_quota_at_each_cfs_period(premise, capsys):
+    assert premise.parse_args([]).periods == [100.0]
+    assert premise.parse_args(["--cfs-period-ms", "100,10"]).periods == [100.0, 10.0]
+    with pytest.raises(SystemExit):
+        premise.parse_args(["--cfs-period-ms", "0.5"])
+    assert "--cfs-period-ms: expected 1 to 1000 ms each" in capsys.readouterr().err
 
 
 def test_the_premise_bench_states_the_host_speed_of_a_normalised_run(premise):

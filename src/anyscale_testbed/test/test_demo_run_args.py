@@ -22,6 +22,16 @@ def test_a_bad_seed_is_one_line_and_exit_2(argv, message, capsys):
     assert message in capsys.readouterr().err
 
 
+def test_the_cfs_period_is_the_kernels_unless_asked_for_and_within_its_limits(capsys):
+    assert parse_args([], "out").cfs_period_ms == 100
+    assert parse_args(["--cfs-period-ms", "10"], "out").cfs_period_ms == 10
+    with pytest.raises(SystemExit) as ended:
+        parse_args(["--cfs-period-ms", "0.5"], "out")
+    assert ended.value.code == 2
+    assert "--cfs-period-ms: expected 1 to 1000 ms (the kernel's limits), got 0.5" in \
+        capsys.readouterr().err
+
+
 def test_normalise_cpu_is_off_unless_asked_for():
     assert parse_args([], "out").normalise_cpu is False
     assert parse_args(["--normalise-cpu"], "out").normalise_cpu is True

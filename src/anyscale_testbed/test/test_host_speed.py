@@ -226,6 +226,16 @@ def test_set_cores_rewrites_the_quota_of_an_existing_group(tmp_path):
     assert quota_file.read_text() == "-1"
 
 
+def test_a_shorter_cfs_period_keeps_the_share_and_set_cores_keeps_the_period(tmp_path):
+    q = CpuQuota("anyscale_robot", 0.34, root=str(tmp_path), period_us=10_000)
+    q.create()
+    group = tmp_path / "anyscale_robot"
+    assert (group / "cpu.cfs_period_us").read_text() == "10000"
+    assert (group / "cpu.cfs_quota_us").read_text() == "3400"
+    q.set_cores(0.3)
+    assert (group / "cpu.cfs_quota_us").read_text() == "3000"
+
+
 def test_the_first_settle_s_make_no_median_and_then_none_of_fewer_than_initial_samples():
     # An idle host's 10.5 ms before the nodes load it must not set the quotas (issue 13's
     # first --normalise-cpu run: 10.4 ms, then the robot at 0.22-0.29 cores, AMCL 1.58 Hz).

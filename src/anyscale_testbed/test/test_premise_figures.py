@@ -7,6 +7,7 @@ import pytest
 from anyscale_testbed.premise_figures import (PREMISE_AMCL_HZ, PREMISE_MARGIN_HZ,
                                               configuration_name,
                                               figures_with_every_node_home, format_markdown,
+                                              longest_gap_after,
                                               premise_figures, premise_is_off, premise_off_note)
 from anyscale_testbed.testbed_record import TestbedRecord
 
@@ -58,9 +59,17 @@ def test_cruise_ignores_standing_still_and_markdown_has_every_row():
     row = premise_figures(rec, skip_s=0.0)[0]
     assert row["mean_speed"] == pytest.approx(0.25, abs=0.01)
     assert row["cruise_speed"] == pytest.approx(0.3, abs=0.01)
-    text = format_markdown([{"quota": "0.33", "case": "robot", **row}])
-    assert text.count("\n") == 3 and "| 0.33 | robot | amcl@robot ar@robot |" in text
+    text = format_markdown([{"quota": "0.33", "period_ms": "10", "case": "robot",
+                             "joint_states_longest_gap_s": 0.051, **row}])
+    assert text.count("\n") == 3 and "| 0.33 | 10 | robot | amcl@robot ar@robot |" in text
+    assert text.rstrip().endswith("| 0.051 |")
     assert not math.isnan(row["cruise_speed"])
+
+
+def test_the_longest_gap_counts_only_after_the_start_up():
+    assert longest_gap_after([1.0, 9.0, 10.0, 10.1, 10.4], skip_s=5.0) == pytest.approx(1.0)
+    assert longest_gap_after([1.0, 9.0, 10.0, 10.1, 10.4], skip_s=9.5) == pytest.approx(0.3)
+    assert math.isnan(longest_gap_after([1.0, 9.0], skip_s=5.0))
 
 
 def test_the_figures_with_every_node_home_are_that_configurations_row():

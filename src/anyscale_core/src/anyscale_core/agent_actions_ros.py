@@ -12,7 +12,7 @@ import rospy
 
 from . import ros_convert as conv
 from .agent_client import wait_registered
-from .decision_engine import RenewLeases, StartNode, StopNode
+from .decision_types import RenewLeases, StartNode, StopNode
 from .ghost_registrations import dead_registrations, ghost_candidates, pauses_under_way, purge
 from .handover_ros import PUBLISHED, TIMED_OUT, OutputWatch, wait_for_output
 

@@ -5,7 +5,7 @@ the per-connection frequency/tolerance trackers, runs the allocator once (one it
 Algorithm 1 per period, as the paper's loop sleeps between iterations) and turns its moves into
 actions for the agents. The rospy wrapper only converts messages and calls services.
 """
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 import math
 from typing import AbstractSet, Dict, List, Mapping, Optional, Tuple
 
@@ -15,113 +15,11 @@ from .allocators import AllocationContext
 from .characterisation import Characterisation
 from .constraints import DynamicState, FrequencyToleranceTracker, required_bandwidth
 from .cost import ObjectiveIntegrator, perf
+from .decision_types import (DecisionParams, Event, RenewLeases, ScaleReport, StartNode, StopNode,
+                             TickResult)
 from .link_capacity import BandwidthHold, LinkCapacity
-from .restart_backoff import BackoffParams, RestartBackoff
+from .restart_backoff import RestartBackoff
 from .restart_state import RestartState, RestartStateError, decode, encode
-
-
-@dataclass(frozen=True)
-class DecisionParams:
-    hysteresis_s: float = 10.0          # the paper's T: no re-migration this soon after a return
-    lease_s: float = 3.0                # remote instances end this long after the last renewal
-    status_timeout_s: float = 1.5       # a remote scale silent this long counts as link down
-    act_at_tolerance: float = 0.5       # move back once this share of a tolerance is spent
-    startup_grace_s: float = 5.0        # a moved node's connections are not judged this long
-    cpu_smoothing_s: float = 2.0        # time constant of the background-load filter
-    restart: BackoffParams = BackoffParams()  # nodes that end unasked: at once, then backing off
-    bandwidth_hold_s: float = 5.0       # a move out needs the link to have shown its bandwidth
-    bandwidth_margin: float = 0.3       # this long, with this share above what it will carry
-    # A node out stays while the link measures its streams plus this share (<= bandwidth_margin,
-    # or what moved out would come back at once): the probe overrates what a stream gets.
-    bandwidth_stay_margin: float = 0.15
-    # A link measured below this is about to be lost: it counts as carrying nothing, so nodes
-    # come home while a handover can still cross it (0: off). See LinkCapacity.usable.
-    weak_link_mbps: float = 0.0
-    # After a link loss, a move out also waits until the link has been up this long (0: only
-    # bandwidth_hold_s). See BandwidthHold.
-    hold_after_loss_s: float = 0.0
-
-
-@dataclass(frozen=True)
-class ScaleReport:
-    """One agent's latest status, in the engine's terms."""
-    scale: str
-    received_at: float                           # engine clock (s)
-    cpu_percent: float                           # % of the scale's capacity
-    capacity_cores: float                        # cores, or the cgroup quota in cores
-    running: Mapping[str, float] = field(default_factory=dict)  # node -> CPU % of one core
-    topic_rates: Mapping[str, float] = field(default_factory=dict)  # topic -> effective Hz
-    link_up: bool = True                         # the master's: its uplink has a carrier
-    bandwidth_mbps: float = math.nan             # measured estimate; NaN = not yet measured
-    standby_cpu: float = 0.0                     # warm standbys' CPU, % of one core
-    ended: Mapping[str, str] = field(default_factory=dict)  # node -> how it ended there
-
-
-def effective_rate(rate_hz: float, last_message_age_s: float) -> float:
-    """The window rate, but no more than silence allows: a topic quiet for 2 s is at most
-    0.5 Hz now, whatever its window still says."""
-    if last_message_age_s > 0 and math.isfinite(last_message_age_s):
-        return min(rate_hz, 1.0 / last_message_age_s)
-    if math.isinf(last_message_age_s):
-        return 0.0
-    return rate_hz
-
-
-def pose_handoff_params(x: float, y: float, yaw: float, cov_xx: float, cov_yy: float,
-                        cov_aa: float, stamp: float = 0.0) -> Dict[str, float]:
-    """AMCL's initial-pose parameters (ROS amcl's names) from the last estimated pose, and
-    initial_pose_stamp (s, the pose's time): the new instance knows it is resuming."""
-    return {"initial_pose_x": x, "initial_pose_y": y, "initial_pose_a": yaw,
-            "initial_cov_xx": cov_xx, "initial_cov_yy": cov_yy, "initial_cov_aa": cov_aa,
-            "initial_pose_stamp": stamp}
-
-
-@dataclass(frozen=True)
-class StartNode:
-    node: str
-    scale: str
-    param_overrides: Tuple[Tuple[str, float], ...]
-    lease_s: float                      # 0 on the master
-
-
-@dataclass(frozen=True)
-class StopNode:
-    node: str
-    scale: str
-    # Make before break: stop only once the node's new instance on this scale has published
-    # its output ("" = stop at once).
-    after_output_on: str = ""
-    # The scale counts as out of reach (its status went silent) while the master's uplink still
-    # has its carrier: the link may be saturated rather than gone, and a stop that gets through
-    # ends the old instance's stream before its lease does. Sent, but not waited for.
-    best_effort: bool = False
-    # Pause the instance instead (launch.pause_at_home, the master scale only): the next start
-    # there resumes it.
-    pause: bool = False
-
-
-@dataclass(frozen=True)
-class RenewLeases:
-    scale: str
-    nodes: Tuple[str, ...]
-    lease_s: float
-
-
-@dataclass(frozen=True)
-class Event:
-    kind: str                           # "start", "migrate", "migrate_back", "adopt", "restart"
-    node: str
-    from_scale: str
-    to_scale: str
-    reason: str
-
-
-@dataclass
-class TickResult:
-    actions: List[object]
-    events: List[Event]
-    state: DynamicState
-    violating: List[str]
 
 
 class DecisionEngine:
@@ -421,7 +319,8 @@ class DecisionEngine:
                   moved: AbstractSet[int] = frozenset()) -> Tuple[List[StartNode], List[Event]]:
         """Nodes whose process ended unasked on the scale they are assigned to, started there
         again (roslaunch's respawn) as their back-off allows: a crash, a node that exits when an
-        input is missing at its start, or a clean exit the master asked for. Only reports
+        input is missing at its start, or a clean exit the master asked for. A node paused at
+        home comes home instead (_crashed_out_comes_home). Only reports
         received after the node's latest start was answered count: an earlier one may still
         show the instance that start replaced."""
         actions, events = [], []
@@ -436,11 +335,30 @@ class DecisionEngine:
                     or not self.backoff[i].due(now)):
                 continue
             self.backoff[i].restarted(now)
+            self.moved_at[i] = now
+            if k != self.ch.master and self.ch.model.node(name).launch.pause_at_home:
+                actions.append(self._start(i, self.ch.master))
+                events.append(self._crashed_out_comes_home(i, scale, report.ended[name], now))
+                continue
             actions.append(self._start(i, k))
             events.append(Event("restart", name, scale, scale,
                                 f"ended on {scale}: {report.ended[name]}"))
-            self.moved_at[i] = now
         return actions, events
+
+    def _crashed_out_comes_home(self, i: int, scale: str, how: str, now: float) -> Event:
+        """A node with a paused instance at home that ended unasked on a remote scale is
+        brought home, as after a link loss, and held there for T. Resuming the paused instance
+        took 0.3-0.8 s to the first output; starting it again on the laptop took 2.4 s, as
+        each registration and parameter read crosses the link to the master on the robot's
+        quota (the fault soak: /amcl_pose silent 2.40 and 2.31 s after AMCL's SIGSEGV on the
+        laptop, Δ 2 s). The hold keeps a node that keeps crashing out there from bouncing."""
+        self.assign[i] = self.ch.master
+        self.migrated_back_at[i] = now
+        self.objective.change(now, perf(self.ch, self.assign))
+        home = self.ch.scale_names[self.ch.master]
+        return Event("migrate_back", self.ch.node_names[i], scale, home,
+                     f"ended on {scale}: {how}; its paused instance at home resumed, held "
+                     f"there for {self.params.hysteresis_s:g} s")
 
     def handoff_overrides(self, name: str) -> Tuple[Tuple[str, float], ...]:
         """The parameters a new instance of `name` starts with: its latest handed-over state."""

@@ -6,7 +6,7 @@ import os
 import threading
 import time
 import xmlrpc.client
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Dict, List
 
 import diagnostic_updater
@@ -19,14 +19,12 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 from . import ros_convert as conv
 from .agent_actions_ros import REGISTER_TIMEOUT_S, AgentActions
 from .agent_client import AgentClient, CallFailures, Worker
-from .allocators import make_allocator
-from .characterisation import characterise
 from .cost import perf
-from .decision_engine import DecisionEngine, DecisionParams, RenewLeases, StartNode
+from .decision_engine import DecisionEngine
+from .decision_params import NodeParams, ParamError, prepare_decision, read_params
+from .decision_types import RenewLeases, StartNode
 from .model import ModelError
-from .model_loader import load_model
 from .process_priority import set_own_nice
-from .restart_backoff import BackoffParams
 from .restart_state import encode
 
 # A remote scale's status silent this long while the robot's uplink is up: a new connection.
@@ -55,85 +53,6 @@ STATE_REFRESH_S = 2.0
 # What an XML-RPC call to the master raises when it is gone, does not answer, or breaks off.
 MASTER_CALL_ERRORS = (OSError, http.client.HTTPException, xmlrpc.client.Error,
                       rospy.ROSException)
-
-
-class ParamError(ValueError):
-    pass
-
-
-@dataclass(frozen=True)
-class NodeParams:
-    model: str
-    allocator: str
-    period_s: float
-    engine: DecisionParams
-    service_timeout_s: float
-    stop_timeout_s: float
-    adopt_wait_s: float
-    stop_sigint_timeout_s: float
-    handover_timeout_s: float
-    handover_messages: int
-    control_nice: int
-
-
-def read_params(get=rospy.get_param) -> NodeParams:
-    """The private parameters, checked; ParamError names the bad one."""
-    def number(name, default, minimum=0.0):
-        value = get("~" + name, default)
-        try:
-            value = float(value)
-        except (TypeError, ValueError):
-            raise ParamError(f"~{name}: expected a number, got {value!r}") from None
-        if not math.isfinite(value) or value < minimum:
-            raise ParamError(f"~{name}: expected a finite number >= {minimum:g}, got {value!r}")
-        return value
-
-    model = get("~model", None)
-    if not isinstance(model, str) or not model:
-        raise ParamError("~model: required (path of the system model YAML)")
-    engine = DecisionParams(hysteresis_s=number("hysteresis_s", 10.0),
-                            lease_s=number("lease_s", 3.0, 0.1),
-                            status_timeout_s=number("status_timeout_s", 1.5, 0.1),
-                            act_at_tolerance=number("act_at_tolerance", 0.5),
-                            startup_grace_s=number("startup_grace_s", 5.0),
-                            cpu_smoothing_s=number("cpu_smoothing_s", 2.0),
-                            restart=BackoffParams(number("restart_delay_s", 1.0),
-                                                  number("restart_delay_max_s", 30.0),
-                                                  number("restart_reset_s", 30.0)),
-                            bandwidth_hold_s=number("bandwidth_hold_s", 5.0),
-                            bandwidth_margin=number("bandwidth_margin", 0.3),
-                            bandwidth_stay_margin=number("bandwidth_stay_margin", 0.15),
-                            weak_link_mbps=number("weak_link_mbps", 0.0),
-                            hold_after_loss_s=number("hold_after_loss_s", 0.0))
-    if engine.act_at_tolerance > 1.0:
-        raise ParamError(f"~act_at_tolerance: expected 0..1, got {engine.act_at_tolerance:g}")
-    if engine.bandwidth_stay_margin > engine.bandwidth_margin:
-        raise ParamError(f"~bandwidth_stay_margin ({engine.bandwidth_stay_margin:g}) must not "
-                         f"exceed ~bandwidth_margin ({engine.bandwidth_margin:g}): a node would "
-                         f"come back as soon as it moved out")
-    control_nice = get("~control_nice", 0)
-    if not isinstance(control_nice, int) or isinstance(control_nice, bool) \
-            or not -20 <= control_nice <= 0:
-        raise ParamError(f"~control_nice: expected a nice value from -20 to 0 (0: the priority "
-                         f"it was started at), got {control_nice!r}")
-    return NodeParams(model, str(get("~allocator", "paper")), number("period_s", 1.0, 0.05),
-                      engine, number("service_timeout_s", 5.0, 0.1),
-                      number("stop_timeout_s", 20.0, 0.1), number("adopt_wait_s", 5.0),
-                      number("stop_sigint_timeout_s", 0.5),
-                      number("handover_timeout_s", 20.0, 0.1),
-                      int(number("handover_messages", 3, 1)), control_nice)
-
-
-def prepare_decision(model_path: str, allocator_name: str):
-    """The model, its characterisation and the allocator the decision node starts from, with no
-    ROS involved (tested by fuzzing); raises only ModelError or ParamError, which main() turns
-    into one FATAL line."""
-    model = load_model(model_path)
-    try:
-        allocator = make_allocator(allocator_name)
-    except ValueError as e:
-        raise ParamError(f"~allocator: {e}") from None
-    return model, characterise(model), allocator
 
 
 class DecisionNode(AgentActions):
@@ -460,7 +379,7 @@ def main(argv=None) -> int:
     """Entry point of nodes/decision_node: exit 1 with one FATAL line on bad params or model."""
     rospy.init_node("anyscale_decision", argv=argv)
     try:
-        node = DecisionNode(read_params())
+        node = DecisionNode(read_params(rospy.get_param))
     except (ParamError, ModelError) as e:
         rospy.logfatal("anyscale decision: %s", e)
         return 1

@@ -6,7 +6,7 @@ from anyscale_msgs.msg import MigrationEvent, NodeAssignment, NodeProcess
 from anyscale_msgs.msg import Mapping as MappingMsg
 from diagnostic_msgs.msg import KeyValue
 
-from .decision_engine import ScaleReport, effective_rate, pose_handoff_params
+from .decision_types import ScaleReport, effective_rate, pose_handoff_params
 from .model import SystemModel
 
 # A node counts as running on a scale from its fork on: adopting a STARTING node avoids

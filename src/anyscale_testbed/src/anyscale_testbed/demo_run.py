@@ -29,7 +29,7 @@ from anyscale_testbed.testbed_figures import colour_violations
 from anyscale_testbed.testbed_record import store_cpu_normalisation
 from anyscale_testbed.testbed_session import (LoopbackBed, NamespaceBed, TestbedSession,
                                               layout_with_cpu)
-from anyscale_testbed.two_scale_testbed import TwoScaleError, missing_capabilities
+from anyscale_testbed.two_scale_testbed import CFS_PERIOD_US, TwoScaleError, missing_capabilities
 from anyscale_nav_demo.goal_sequence import loop_from_goal
 
 PREFIX = "[testbed] "
@@ -134,6 +134,11 @@ def parse_args(argv, default_out: str):
                         "1.77 Hz over 7 runs as the workload took 11.8-16.5 ms. The quotas and "
                         "the workload's ms go in the record (cpu_normalisation). Off by "
                         "default; its first validation cut the robot by 40 %%: see the anyscale_testbed README")
+    p.add_argument("--cfs-period-ms", type=float, default=CFS_PERIOD_US / 1000, metavar="MS",
+                   help="the CPU quotas' CFS period, 1-1000 ms (default: the kernel's 100). A "
+                        "group that used its quota waits for the next period: at 100 ms the "
+                        "robot's 0.34 cores stand still up to 83 ms at a time, as no slow CPU "
+                        "does; a shorter period spreads the same share finer")
     p.add_argument("--record-inputs", default="", metavar="TOPICS",
                    help="comma-separated topics whose receipts the record keeps too, e.g. "
                         "/scan,/odom,/odometry/filtered: each tolerance violation's cause then "
@@ -163,6 +168,8 @@ def parse_args(argv, default_out: str):
         p.error(f"--schedule: expected [[t_s, Mbit/s], ...], got {args.schedule!r}")
     if args.seed < 0:
         p.error(f"--seed: expected an integer >= 0, got {args.seed}")
+    if not 1 <= args.cfs_period_ms <= 1000:
+        p.error(f"--cfs-period-ms: expected 1 to 1000 ms (the kernel's limits), got {args.cfs_period_ms:g}")
     if args.seed and args.link != "coverage":
         p.error("--seed varies the coverage model: it needs --link coverage")
     args.record_inputs = [t.strip() for t in args.record_inputs.split(",") if t.strip()]
@@ -198,7 +205,8 @@ def main(default_out: str, argv=None) -> int:
     run_dir = os.path.abspath(os.path.join(args.out,
                                            f"{args.world}{start}-{link}{seed}-{stamp}"))
     record = os.path.join(run_dir, "record.json")
-    bed = LoopbackBed() if loopback else NamespaceBed(layout_with_cpu(robot_cpu, laptop_cpu))
+    bed = LoopbackBed() if loopback else NamespaceBed(layout_with_cpu(robot_cpu, laptop_cpu),
+                                                      cfs_period_us=int(args.cfs_period_ms * 1000))
     normaliser = None
     if args.normalise_cpu and not loopback:
         # The groups exist once the bed is entered; the normaliser is entered after it and left
@@ -207,7 +215,8 @@ def main(default_out: str, argv=None) -> int:
                                    reference_ms, settle_s=NORMALISE_SETTLE_S,
                                    log=lambda line: print(PREFIX + line, flush=True))
     print(PREFIX + f"world {args.world}, link {link}" + (f" seed {args.seed}" if seed else "")
-          + ("" if loopback else f", CPU quota robot {robot_cpu:g} / laptop {laptop_cpu:g} cores")
+          + ("" if loopback else f", CPU quota robot {robot_cpu:g} / laptop {laptop_cpu:g} cores"
+                                 f" per {args.cfs_period_ms:g} ms period")
           + (f" at the host speed of the calibration ({reference_ms:g} ms workload), "
              "normalised every 5 s" if normaliser else "")
           + f"; logs and results in {run_dir}")

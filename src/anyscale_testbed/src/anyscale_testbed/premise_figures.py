@@ -21,8 +21,8 @@ PREMISE_AMCL_HZ = 2.0
 PREMISE_MARGIN_HZ = 0.5
 # Start-up left out of a run's figures (bench_premise.py's --skip default).
 START_UP_S = 30.0
-COLUMNS = ["quota", "case", "configuration", "seconds", "amcl_hz", "amcl_longest_gap_s",
-           "mean_speed", "cruise_speed"]
+COLUMNS = ["quota", "period_ms", "case", "configuration", "seconds", "amcl_hz",
+           "amcl_longest_gap_s", "mean_speed", "cruise_speed", "joint_states_longest_gap_s"]
 
 
 def configuration_name(mapping: Dict[str, str]) -> str:
@@ -52,6 +52,12 @@ def configuration_spans(rec: TestbedRecord, start: float, end: float):
     """(configuration, t0, t1) spans of one mapping within [start, end)."""
     cuts = sorted({start, end} | {t for t, _, _, _ in rec.mappings if start < t < end})
     return [(configuration_name(mapping_at(rec, a)), a, b) for a, b in zip(cuts, cuts[1:])]
+
+
+def longest_gap_after(receipts: List[float], skip_s: float) -> float:
+    """The longest interval between receipts after skip_s (NaN with fewer than two)."""
+    t = np.sort(np.asarray([x for x in receipts if x >= skip_s], dtype=float))
+    return float(np.diff(t).max()) if len(t) >= 2 else float("nan")
 
 
 def premise_figures(rec: TestbedRecord, skip_s: float) -> List[dict]:
@@ -107,10 +113,13 @@ def premise_off_note(amcl_hz_home: float) -> str:
 
 
 def format_markdown(rows: List[dict]) -> str:
-    lines = ["| robot quota | run | configuration | s | AMCL Hz | AMCL longest gap s | "
-             "mean m/s | cruise m/s |", "|---|---|---|---|---|---|---|---|"]
+    lines = ["| robot quota | CFS period ms | run | configuration | s | AMCL Hz | "
+             "AMCL longest gap s | mean m/s | cruise m/s | /joint_states longest gap s |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['quota']} | {r['case']} | {r['configuration']} | {r['seconds']:.0f} "
-                     f"| {r['amcl_hz']:.2f} | {r['amcl_longest_gap_s']:.2f} | "
-                     f"{r['mean_speed']:.3f} | {r['cruise_speed']:.3f} |")
+        lines.append(f"| {r['quota']} | {r.get('period_ms', '100')} | {r['case']} | "
+                     f"{r['configuration']} | {r['seconds']:.0f} | {r['amcl_hz']:.2f} | "
+                     f"{r['amcl_longest_gap_s']:.2f} | {r['mean_speed']:.3f} | "
+                     f"{r['cruise_speed']:.3f} | "
+                     f"{r.get('joint_states_longest_gap_s', float('nan')):.3f} |")
     return "\n".join(lines) + "\n"

@@ -40,7 +40,7 @@ from .soak_silences import silence_violations, startup_silences, unchecked
 from .soak_report import format_markdown, format_table, verdict_ok, write_csv
 from .testbed_record import TestbedRecord
 from .testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
-from .two_scale_testbed import CGROUP_CPU_ROOT, TwoScaleError, run
+from .two_scale_testbed import CFS_PERIOD_US, CGROUP_CPU_ROOT, TwoScaleError, run
 
 WORLD = "small_loop"
 LEASE_S = 3.0               # robot.launch's lease_s, which the soak leaves as it is
@@ -70,6 +70,9 @@ def parse_args(argv):
                    help="robot CPU quota (default: the calibration file's)")
     p.add_argument("--laptop-cpu", type=float, default=None, metavar="CORES",
                    help="laptop CPU quota (default: the calibration file's)")
+    p.add_argument("--cfs-period-ms", type=float, default=CFS_PERIOD_US / 1000, metavar="MS",
+                   help="the CPU quotas' CFS period, 1-1000 ms (default: the kernel's 100); see "
+                        "run_testbed.py --help")
     p.add_argument("--hysteresis", type=float, default=10.0, help="the paper's T in s (10)")
     p.add_argument("--dry-run", action="store_true",
                    help="print the schedule and exit (no root needed)")
@@ -91,6 +94,8 @@ def parse_args(argv):
         cores = getattr(args, name)
         if cores is not None and not (math.isfinite(cores) and cores > 0):
             p.error(f"--{name.replace('_', '-')}: expected cores > 0, got {cores:g}")
+    if not 1 <= args.cfs_period_ms <= 1000:
+        p.error(f"--cfs-period-ms: expected 1 to 1000 ms (the kernel's limits), got {args.cfs_period_ms:g}")
     if not (math.isfinite(args.hysteresis) and args.hysteresis >= 0):
         p.error(f"--hysteresis: expected seconds >= 0, got {args.hysteresis:g}")
     return args
@@ -173,10 +178,11 @@ def main(root: str, argv=None) -> int:
     goals = loop * max(2, math.ceil(total_s / LOOP_S))
     demo = demo_args(["--world", WORLD, "--link", "unshaped", "--hysteresis",
                       str(args.hysteresis)], out)
-    say(f"bench_fault_soak: CPU quota robot {robot_cpu:g} / laptop {laptop_cpu:g} cores; "
-        f"logs and record in {run_dir}")
+    say(f"bench_fault_soak: CPU quota robot {robot_cpu:g} / laptop {laptop_cpu:g} cores per "
+        f"{args.cfs_period_ms:g} ms period; logs and record in {run_dir}")
 
-    bed = NamespaceBed(layout_with_cpu(robot_cpu, laptop_cpu))
+    bed = NamespaceBed(layout_with_cpu(robot_cpu, laptop_cpu),
+                       cfs_period_us=int(args.cfs_period_ms * 1000))
     injected: List[InjectedFault] = []
     sampler: Optional[Sampler] = None
     teardown_left: List[str] = []

@@ -20,6 +20,10 @@ from .testbed_teardown import (attempt, remove_namespace, remove_veths, signal_q
                                signals_deferred, stop_process_groups)
 
 CGROUP_CPU_ROOT = "/sys/fs/cgroup/cpu"
+# The kernel's default CFS period. Within a period a group that has used its quota waits for the
+# next one: at 0.34 cores of a 100 ms period, two busy threads spend the quota in 17 ms and the
+# whole robot then stands still for 83 ms, a stall no slow CPU has (a 40 Hz driver missed
+# /joint_states' 0.2 s limit so in the fault soak). run_testbed.py --cfs-period-ms shortens it.
 CFS_PERIOD_US = 100_000
 
 
@@ -101,27 +105,29 @@ def namespace_exec(end: ScaleEnd, argv: List[str]) -> List[str]:
     return ["nsenter", f"--net=/var/run/netns/{end.namespace}", "--"] + list(argv)
 
 
-def quota_us(cores: float) -> int:
-    """cpu.cfs_quota_us for `cores` per CFS_PERIOD_US; -1 (no limit) for 0 cores."""
-    return int(cores * CFS_PERIOD_US) if cores > 0 else -1
+def quota_us(cores: float, period_us: int = CFS_PERIOD_US) -> int:
+    """cpu.cfs_quota_us for `cores` per `period_us`; -1 (no limit) for 0 cores."""
+    return int(cores * period_us) if cores > 0 else -1
 
 
 class CpuQuota:
     """A cgroup v1 CPU group holding a scale's processes at `cores` of CPU."""
 
-    def __init__(self, name: str, cores: float, root: str = CGROUP_CPU_ROOT):
+    def __init__(self, name: str, cores: float, root: str = CGROUP_CPU_ROOT,
+                 period_us: int = CFS_PERIOD_US):
         self.path = os.path.join(root, name)
         self.cores = cores
+        self.period_us = period_us
 
     def create(self):
         os.makedirs(self.path, exist_ok=True)
-        self._write("cpu.cfs_period_us", CFS_PERIOD_US)
-        self._write("cpu.cfs_quota_us", quota_us(self.cores))
+        self._write("cpu.cfs_period_us", self.period_us)
+        self._write("cpu.cfs_quota_us", quota_us(self.cores, self.period_us))
 
     def set_cores(self, cores: float):
         """Changes the quota of the existing group in place (only cpu.cfs_quota_us is written;
         its processes stay in it): host_speed.CpuNormaliser follows the host's speed with it."""
-        self._write("cpu.cfs_quota_us", quota_us(cores))
+        self._write("cpu.cfs_quota_us", quota_us(cores, self.period_us))
         self.cores = cores
 
     def add(self, pid: int):
@@ -207,10 +213,12 @@ class TwoScaleTestbed:
     also after an exception. Processes are started with `start(scale, argv, ...)` and ended
     (SIGINT, then SIGKILL) on teardown."""
 
-    def __init__(self, layout: TwoScaleLayout = TwoScaleLayout(), cgroup_prefix: str = "anyscale"):
+    def __init__(self, layout: TwoScaleLayout = TwoScaleLayout(), cgroup_prefix: str = "anyscale",
+                 cfs_period_us: int = CFS_PERIOD_US):
         self.layout = layout
         self.quotas: Dict[str, CpuQuota] = {
-            end.scale: CpuQuota(f"{cgroup_prefix}_{end.scale}", end.cpu_cores)
+            end.scale: CpuQuota(f"{cgroup_prefix}_{end.scale}", end.cpu_cores,
+                                period_us=cfs_period_us)
             for end in layout.ends if end.cpu_cores > 0}
         self.processes: List[subprocess.Popen] = []
 

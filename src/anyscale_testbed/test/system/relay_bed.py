@@ -1,0 +1,65 @@
+"""What the system tests of the stock relay (relay_model.yaml) share: the robot-side probe that
+logs each /chatter_relay message with its sender, and where the relay's instances run."""
+import os
+import subprocess
+
+from anyscale_testbed.two_scale_testbed import namespace_exec
+
+PROBE = """
+import sys, time, rospy
+from std_msgs.msg import String
+rospy.init_node("relay_probe", anonymous=True)
+out = open(sys.argv[1], "a", buffering=1)
+rospy.Subscriber("/chatter_relay", String,
+                 lambda m: out.write("%.3f %s\\n" % (time.time(), m._connection_header["callerid"])))
+rospy.spin()
+"""
+
+
+def model_path():
+    pkg = subprocess.run(["rospack", "find", "anyscale_core"], capture_output=True, text=True)
+    return os.path.join(pkg.stdout.strip(), "test", "config", "relay_model.yaml")
+
+
+def relay_processes():
+    """pid -> the node name it was started under, for every live relay on this machine."""
+    found = {}
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                args = f.read().decode(errors="replace").split("\0")
+            with open(f"/proc/{pid}/stat") as f:
+                if f.read().rsplit(")", 1)[1].split()[0] == "Z":
+                    continue
+        except OSError:
+            continue
+        for a in args:
+            if a == "__name:=relay" or a.startswith("__name:=relay__"):
+                found[int(pid)] = a.split(":=", 1)[1]
+    return found
+
+
+def relay_in(namespace):
+    """(pid, name) of the relay running in a network namespace (its /proc ns link), or None."""
+    for pid, name in relay_processes().items():
+        try:
+            if os.readlink(f"/proc/{pid}/ns/net") == namespace:
+                return pid, name
+        except OSError:
+            continue
+    return None
+
+
+def in_scale(bed, session, scale, argv):
+    """argv run to its end inside a scale's network namespace, with that scale's ROS env."""
+    return subprocess.run(namespace_exec(bed.end(scale), argv), env=session.env(scale),
+                          capture_output=True, text=True, timeout=20)
+
+
+def receipts(path):
+    """[(wall time, callerid)] of every /chatter_relay message the robot's probe received."""
+    try:
+        with open(path) as f:
+            return [(float(t), who) for t, who in (line.split() for line in f if line.strip())]
+    except FileNotFoundError:
+        return []

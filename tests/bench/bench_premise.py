@@ -21,7 +21,8 @@ DIR/premise.md and DIR/premise.csv. Run with the workspace sourced:
 
 Each run also records /joint_states (the odometer's 40 Hz stream, a critical connection with a
 0.2 s limit) and prints its longest gap: the robot's quota must starve AMCL, not stall the
-drivers (--cfs-period-ms, a shorter CFS period than the kernel's 100 ms).
+drivers. --cfs-period-ms compares CFS periods side by side (10 ms measured worse than the
+kernel's 100 ms: see anyscale_testbed/two_scale_testbed.py).
 """
 import argparse
 import itertools

@@ -61,6 +61,17 @@ def test_script_reports_errors_without_traceback(tmp_path):
     assert f"{bad}: scales: expected at least one scale" in run.stderr
 
 
+def test_a_reader_that_goes_away_ends_the_command_quietly(testbed_path):
+    """`anyscale check MODEL | head -1`: the pipe closes before the output is written."""
+    proc = subprocess.Popen([sys.executable, SCRIPT, "check", testbed_path],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
+    proc.stdout.close()
+    err = proc.stderr.read()
+    assert proc.wait(timeout=30) in (0, 141)
+    assert "Traceback" not in err and "BrokenPipeError" not in err, err
+
+
 @pytest.mark.parametrize("command", ["check", "plan", "simulate", "profile", "thresholds",
                                      "top", "model draft"])
 def test_every_command_has_help(command, capsys):

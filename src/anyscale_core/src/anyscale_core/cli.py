@@ -7,6 +7,7 @@ parsers and carries its commands out) and turns their errors into one line. Erro
 user's files are printed as one line naming the file and key, exit status 2; so is bad usage.
 """
 import argparse
+import os
 import sys
 from typing import List, Optional
 
@@ -46,3 +47,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     except KeyboardInterrupt:
         print(f"anyscale {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # The reader went away (`anyscale check M | head`): as other commands do, end quietly.
+        # stdout points at /dev/null so that the interpreter's last flush does not raise again.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141

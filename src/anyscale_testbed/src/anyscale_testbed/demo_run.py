@@ -136,9 +136,9 @@ def parse_args(argv, default_out: str):
                         "default; its first validation cut the robot by 40 %%: see the anyscale_testbed README")
     p.add_argument("--cfs-period-ms", type=float, default=CFS_PERIOD_US / 1000, metavar="MS",
                    help="the CPU quotas' CFS period, 1-1000 ms (default: the kernel's 100). A "
-                        "group that used its quota waits for the next period: at 100 ms the "
-                        "robot's 0.34 cores stand still up to 83 ms at a time, as no slow CPU "
-                        "does; a shorter period spreads the same share finer")
+                        "group that used its quota waits for the next period; 10 ms was "
+                        "measured worse than 100 (the drivers' and AMCL's longest gaps doubled: "
+                        "the kernel hands quota out in 5 ms slices), see two_scale_testbed.py")
     p.add_argument("--record-inputs", default="", metavar="TOPICS",
                    help="comma-separated topics whose receipts the record keeps too, e.g. "
                         "/scan,/odom,/odometry/filtered: each tolerance violation's cause then "

@@ -21,9 +21,12 @@ from .testbed_teardown import (attempt, remove_namespace, remove_veths, signal_q
 
 CGROUP_CPU_ROOT = "/sys/fs/cgroup/cpu"
 # The kernel's default CFS period. Within a period a group that has used its quota waits for the
-# next one: at 0.34 cores of a 100 ms period, two busy threads spend the quota in 17 ms and the
-# whole robot then stands still for 83 ms, a stall no slow CPU has (a 40 Hz driver missed
-# /joint_states' 0.2 s limit so in the fault soak). run_testbed.py --cfs-period-ms shortens it.
+# next one (at 0.3 cores of 100 ms, up to 70-85 ms), a stall no slow CPU has; a shorter period
+# (run_testbed.py --cfs-period-ms) was tried and made it worse: at 10 ms, /joint_states' longest
+# gap went from 0.12 s to 0.27-0.29 s and AMCL's from 0.8-1.0 s to 1.5-1.8 s with every node on
+# the robot (bench_premise.py, 0.30 cores, 2 runs each, interleaved). The kernel hands a group's
+# quota to a CPU in slices of sched_cfs_bandwidth_slice_us (5 ms here): a 3 ms quota is one
+# slice on one CPU, and the group's threads on the other wait out the period.
 CFS_PERIOD_US = 100_000
 
 

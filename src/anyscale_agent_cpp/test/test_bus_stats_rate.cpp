@@ -12,6 +12,7 @@
 
 #include "anyscale_agent_cpp/bus_stats_rate.h"
 #include "anyscale_agent_cpp/listening_sockets.h"
+#include "anyscale_agent_cpp/proc_net_tcp.h"
 #include "anyscale_agent_cpp/unique_fd.h"
 #include "anyscale_agent_cpp/watch_list.h"
 
@@ -208,21 +209,22 @@ TEST(BusStatsRate, ANodeThatStopsAnsweringHasItsTopicAgeFromTheOverdueReply)
   EXPECT_EQ(r.stats(t).window_messages, 0u);
 }
 
-TEST(ListeningSockets, ParsesTheLocalSideOfProcNetTcp)
+TEST(ProcNetTcp, ParsesTcpAndTheLocalSideOfTcp6)
 {
   const std::string v4 =
       "  sl  local_address rem_address   st tx_queue rx_queue tr tm->when retrnsmt   uid  timeout inode\n"
       "   0: 00000000:A1B2 00000000:0000 0A 00000000:00000000 00:00000000 00000000     0        0 1746346 1 0\n"
       "   1: 0100007F:2B67 0100007F:D2A4 01 00000000:00000000 00:00000000 00000000     0        0 1746350 1 0\n"
       "   2: garbage\n";
-  const auto e = parseLocalTcpEntries(v4, false);
+  const auto e = parseProcNetTcp(v4);
   ASSERT_EQ(e.size(), 2u);
-  EXPECT_EQ(e[0].address, "0.0.0.0");
-  EXPECT_EQ(e[0].port, 0xA1B2);
-  EXPECT_EQ(e[0].state, 0x0A);
+  EXPECT_EQ(e[0].local, "0.0.0.0");
+  EXPECT_EQ(e[0].local_port, 0xA1B2);
+  EXPECT_EQ(e[0].state, kTcpListen);
   EXPECT_EQ(e[0].inode, 1746346u);
-  EXPECT_EQ(e[1].address, "127.0.0.1");
-  EXPECT_EQ(e[1].state, 0x01);
+  EXPECT_EQ(e[1].local, "127.0.0.1");
+  EXPECT_EQ(e[1].remote, "127.0.0.1:53924");
+  EXPECT_EQ(e[1].state, kTcpEstablished);
   const std::string v6 =
       "   0: 00000000000000000000000000000000:1F90 00000000000000000000000000000000:0000 0A 00000000:00000000 "
       "00:00000000 00000000     0        0 11 1 0\n"
@@ -230,11 +232,11 @@ TEST(ListeningSockets, ParsesTheLocalSideOfProcNetTcp)
       "00:00000000 00000000     0        0 12 1 0\n"
       "   2: 00000000000000000000000001000000:1F92 00000000000000000000000000000000:0000 0A 00000000:00000000 "
       "00:00000000 00000000     0        0 13 1 0\n";
-  const auto e6 = parseLocalTcpEntries(v6, true);
+  const auto e6 = parseProcNetTcp(v6, true);
   ASSERT_EQ(e6.size(), 3u);
-  EXPECT_EQ(e6[0].address, "::");
-  EXPECT_EQ(e6[1].address, "127.0.0.1");
-  EXPECT_EQ(e6[2].address, "::1");
+  EXPECT_EQ(e6[0].local, "::");
+  EXPECT_EQ(e6[1].local, "127.0.0.1");
+  EXPECT_EQ(e6[2].local, "::1");
 }
 
 TEST(ListeningSockets, FindsThisProcesssListeningSocketAndItsAcceptedConnections)

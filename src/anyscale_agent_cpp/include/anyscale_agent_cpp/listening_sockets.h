@@ -8,18 +8,6 @@
 namespace anyscale_agent
 {
 
-// The local side of one line of /proc/net/tcp or tcp6 (stuck_connections.h reads the remote side).
-struct LocalTcpEntry
-{
-  std::string address;  // dotted IPv4 ("0.0.0.0"); IPv6 as "::", "::1" or an IPv4-mapped one as IPv4
-  int port = 0;
-  int state = 0;        // 0x0A: listening, 0x01: established
-  uint64_t inode = 0;
-};
-// Lines it cannot read are skipped (the header among them). IPv6 addresses other than the
-// unspecified, loopback and IPv4-mapped ones are given as "" (not reachable as written here).
-std::vector<LocalTcpEntry> parseLocalTcpEntries(const std::string& text, bool ipv6);
-
 struct ListeningSocket
 {
   std::string host;  // where to connect: 127.0.0.1 for a socket bound to every address

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "anyscale_agent_cpp/proc_net_tcp.h"
+
 namespace anyscale_agent
 {
 
@@ -16,20 +18,6 @@ namespace anyscale_agent
 // or request has gone unacknowledged for seconds is such a call (idle keep-alive connections to
 // the master, which roscpp keeps, have nothing unacknowledged). Breaking it makes roscpp fail or
 // retry the call on a fresh connection, which goes through at once on a link that is up.
-
-struct TcpEntry
-{
-  uint64_t inode = 0;
-  std::string remote;   // "a.b.c.d:port" (IPv4)
-  int state = 0;        // the kernel's TCP state: 1 ESTABLISHED, 2 SYN_SENT, ...
-  uint64_t tx_queue = 0;  // bytes sent and not yet acknowledged
-};
-
-// The entries of /proc/net/tcp's text; lines that do not parse are skipped.
-std::vector<TcpEntry> parseProcNetTcp(const std::string& text);
-
-// "a.b.c.d:port" from /proc/net/tcp's "0100007F:2C2F" (little-endian hex address on x86 and ARM).
-std::string remoteFromHex(const std::string& hex);
 
 // Tracks the connections to one remote address across calls of update(), once a second or so.
 class StuckConnections

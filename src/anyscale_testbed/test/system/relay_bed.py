@@ -1,7 +1,9 @@
-"""What the system tests of the stock relay (relay_model.yaml) share: the robot-side probe that
-logs each /chatter_relay message with its sender, and where the relay's instances run."""
+"""What the system tests of the stock relay (relay_model.yaml) share: the two scales launched
+with a robot-side probe that logs each /chatter_relay message with its sender, and where the
+relay's instances run."""
 import os
 import subprocess
+import sys
 
 from anyscale_testbed.two_scale_testbed import namespace_exec
 
@@ -14,6 +16,24 @@ rospy.Subscriber("/chatter_relay", String,
                  lambda m: out.write("%.3f %s\\n" % (time.time(), m._connection_header["callerid"])))
 rospy.spin()
 """
+
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def launch_relay_bed(bed, session, run_dir, model, receipts_path, hysteresis_s):
+    """The robot (agent, decision node, a clean 27 Mbit/s link, monitor), the laptop's agent,
+    and the probe writing every /chatter_relay receipt to receipts_path."""
+    session.roslaunch("robot", "robot", [
+        os.path.join(HERE, "relay_robot.launch"), f"model:={model}", "schedule:=[[0, 27]]",
+        f"record_path:={os.path.join(run_dir, 'record.json')}", "duration_s:=120",
+        f"hysteresis_s:={hysteresis_s}", f"uplink_interface:={bed.uplink_interface('robot')}"],
+        wait_for_master=False)
+    session.roslaunch("laptop", "laptop", [
+        "anyscale_agent_cpp", "agent.launch", "scale:=laptop", "master_scale:=robot",
+        f"model:={model}", "sample_rate_hz:=5.0", "sigint_timeout_s:=2.0"])
+    bed.start("robot", [sys.executable, "-c", PROBE, receipts_path], session.env("robot"),
+              os.path.join(run_dir, "logs", "probe.log"), cpu_quota=False)
 
 
 def model_path():

@@ -7,7 +7,6 @@ The stock relay (relay_model.yaml, with launch.pause_at_home) moves to the lapto
 link, the robot's instance is paused; the test sends SIGSEGV to the laptop's relay."""
 import os
 import signal
-import sys
 import time
 
 import pytest
@@ -17,9 +16,8 @@ from anyscale_core.polling import wait_for
 
 from anyscale_testbed.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
 
-from relay_bed import PROBE, model_path, receipts, relay_in
+from relay_bed import launch_relay_bed, model_path, receipts, relay_in
 
-HERE = os.path.dirname(os.path.abspath(__file__))
 RELAY_TOLERANCE_S = 2.0        # relay_model.yaml
 HYSTERESIS_S = 30.0            # T: the relay stays home this long after it came back
 AFTER_S = 10.0                 # how long the output is watched after the crash
@@ -52,16 +50,7 @@ def crash(tmp_path_factory):
     got = os.path.join(run_dir, "relay_receipts.txt")
     with NamespaceBed(layout_with_cpu(0.0, 0.0)) as bed:
         session = TestbedSession(bed, run_dir)
-        session.roslaunch("robot", "robot", [
-            os.path.join(HERE, "relay_robot.launch"), f"model:={model}", "schedule:=[[0, 27]]",
-            f"record_path:={os.path.join(run_dir, 'record.json')}", "duration_s:=120",
-            f"hysteresis_s:={HYSTERESIS_S}", f"uplink_interface:={bed.uplink_interface('robot')}"],
-            wait_for_master=False)
-        session.roslaunch("laptop", "laptop", [
-            "anyscale_agent_cpp", "agent.launch", "scale:=laptop", "master_scale:=robot",
-            f"model:={model}", "sample_rate_hz:=5.0", "sigint_timeout_s:=2.0"])
-        bed.start("robot", [sys.executable, "-c", PROBE, got], session.env("robot"),
-                  os.path.join(run_dir, "logs", "probe.log"), cpu_quota=False)
+        launch_relay_bed(bed, session, run_dir, model, got, HYSTERESIS_S)
         laptop, robot = bed.netns_link("laptop"), bed.netns_link("robot")
         out = wait_for(lambda: relay_in(laptop) and relay_in(robot)
                        and state(relay_in(robot)[0]) == "T", 60.0, 0.1)

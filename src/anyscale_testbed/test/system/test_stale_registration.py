@@ -19,9 +19,8 @@ from anyscale_core.polling import wait_for
 
 from anyscale_testbed.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
 
-from relay_bed import PROBE, in_scale, model_path, receipts, relay_in, relay_processes
+from relay_bed import in_scale, launch_relay_bed, model_path, receipts, relay_in, relay_processes
 
-HERE = os.path.dirname(os.path.abspath(__file__))
 RELAY_TOLERANCE_S = 2.0        # relay_model.yaml
 LEASE_S = 3.0                  # the decision node's default
 CUT_S = 2.0                    # shorter than the lease: the frozen instance survives the cut
@@ -45,16 +44,7 @@ def race(tmp_path_factory):
     got = os.path.join(run_dir, "relay_receipts.txt")
     with NamespaceBed(layout_with_cpu(0.0, 0.0)) as bed:
         session = TestbedSession(bed, run_dir)
-        session.roslaunch("robot", "robot", [
-            os.path.join(HERE, "relay_robot.launch"), f"model:={model}", "schedule:=[[0, 27]]",
-            f"record_path:={os.path.join(run_dir, 'record.json')}", "duration_s:=120",
-            "hysteresis_s:=30", f"uplink_interface:={bed.uplink_interface('robot')}"],
-            wait_for_master=False)
-        session.roslaunch("laptop", "laptop", [
-            "anyscale_agent_cpp", "agent.launch", "scale:=laptop", "master_scale:=robot",
-            f"model:={model}", "sample_rate_hz:=5.0", "sigint_timeout_s:=2.0"])
-        bed.start("robot", [sys.executable, "-c", PROBE, got], session.env("robot"),
-                  os.path.join(run_dir, "logs", "probe.log"), cpu_quota=False)
+        launch_relay_bed(bed, session, run_dir, model, got, 30)
         laptop = bed.netns_link("laptop")
         # The relay moves out, and the robot's instance is stopped once the laptop's published.
         moved = wait_for(lambda: relay_in(laptop) and len(relay_processes()) == 1, 60.0, 0.1)

@@ -79,24 +79,10 @@ RateStats BusStatsRate::stats(double now)
     s.rate_hz = double(messages) / window_s_;
     return s;
   }
-  double sum = 0.0, sum_sq = 0.0;
-  uint64_t n = 0;
-  s.interval_min_s = std::numeric_limits<double>::infinity();
-  s.interval_max_s = 0.0;
+  IntervalStats intervals;
   for (std::size_t i = 1; i < counted_.size(); ++i)
-  {
-    const double span = counted_[i].last_arrival - counted_[i - 1].last_arrival;
-    const double mean = span / double(counted_[i].messages);
-    sum += span;
-    sum_sq += mean * mean * double(counted_[i].messages);
-    n += counted_[i].messages;
-    s.interval_min_s = std::min(s.interval_min_s, mean);
-    s.interval_max_s = std::max(s.interval_max_s, mean);
-  }
-  const double mean = sum / double(n);
-  s.interval_std_s = std::sqrt(std::max(0.0, sum_sq / double(n) - mean * mean));
-  const double excess = std::max(0.0, silent_until - counted_.back().last_arrival - s.interval_max_s);
-  s.rate_hz = sum + excess > 0.0 ? double(n) / (sum + excess) : 0.0;
+    intervals.add(counted_[i].last_arrival - counted_[i - 1].last_arrival, counted_[i].messages);
+  intervals.fill(s, silent_until - counted_.back().last_arrival);
   return s;
 }
 

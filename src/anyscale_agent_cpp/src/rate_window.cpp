@@ -8,6 +8,30 @@
 namespace anyscale_agent
 {
 
+void IntervalStats::add(double span, uint64_t messages)
+{
+  if (messages == 0)
+    return;
+  const double mean = span / double(messages);
+  sum_ += span;
+  sum_sq_ += mean * mean * double(messages);
+  n_ += messages;
+  min_ = std::min(min_, mean);
+  max_ = std::max(max_, mean);
+}
+
+void IntervalStats::fill(RateStats& s, double silence_s) const
+{
+  if (n_ == 0)
+    return;
+  const double mean = sum_ / double(n_);
+  s.interval_min_s = min_;
+  s.interval_max_s = max_;
+  s.interval_std_s = std::sqrt(std::max(0.0, sum_sq_ / double(n_) - mean * mean));
+  const double excess = std::max(0.0, silence_s - max_);
+  s.rate_hz = sum_ + excess > 0.0 ? double(n_) / (sum_ + excess) : 0.0;
+}
+
 RateWindow::RateWindow(double window_s, std::size_t max_messages)
   : window_s_(window_s > 0.0 ? window_s : 2.0), max_messages_(std::max<std::size_t>(max_messages, 2))
 {
@@ -52,23 +76,10 @@ RateStats RateWindow::stats(double now)
     s.rate_hz = 1.0 / window_s_;
     return s;
   }
-  double sum = 0.0, sum_sq = 0.0;
-  s.interval_min_s = std::numeric_limits<double>::infinity();
-  s.interval_max_s = 0.0;
+  IntervalStats intervals;
   for (std::size_t i = 1; i < arrivals_.size(); ++i)
-  {
-    const double d = arrivals_[i].t - arrivals_[i - 1].t;
-    sum += d;
-    sum_sq += d * d;
-    s.interval_min_s = std::min(s.interval_min_s, d);
-    s.interval_max_s = std::max(s.interval_max_s, d);
-  }
-  const double mean = sum / double(n);
-  s.interval_std_s = std::sqrt(std::max(0.0, sum_sq / double(n) - mean * mean));
-  // Only the part of the silence beyond the longest interval counts, so sampling just before a
-  // message that is on time changes nothing, while a stopped topic decays continuously.
-  const double excess = std::max(0.0, now - arrivals_.back().t - s.interval_max_s);
-  s.rate_hz = sum + excess > 0.0 ? double(n) / (sum + excess) : 0.0;
+    intervals.add(arrivals_[i].t - arrivals_[i - 1].t, 1);
+  intervals.fill(s, now - arrivals_.back().t);
   return s;
 }
 

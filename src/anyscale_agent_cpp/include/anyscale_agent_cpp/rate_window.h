@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <limits>
 
 namespace anyscale_agent
 {
@@ -18,6 +19,24 @@ struct RateStats
   double last_message_age_s = 0.0;  // +inf before the first message
   std::size_t window_messages = 0;
   double window_s = 0.0;
+};
+
+// The interval statistics and the rate of a RateStats from the intervals between arrivals, each
+// given as `messages` intervals of equal length spread over `span` (one by one from RateWindow,
+// a poll's worth at a time from BusStatsRate).
+class IntervalStats
+{
+public:
+  void add(double span, uint64_t messages);
+  // Fills s's interval fields and rate_hz, `silence_s` after the last arrival: only the part of
+  // the silence beyond the longest interval counts, so a sample just before a message that is on
+  // time changes nothing, while a stopped topic decays continuously.
+  void fill(RateStats& s, double silence_s) const;
+
+private:
+  double sum_ = 0.0, sum_sq_ = 0.0;
+  uint64_t n_ = 0;
+  double min_ = std::numeric_limits<double>::infinity(), max_ = 0.0;
 };
 
 // Arrival times in seconds on any monotonic clock; `now` passed in so tests need no clock.

@@ -111,11 +111,10 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   topics_ = std::make_unique<TopicWatcher>(nh_, positive(pnh_, "rate_window_s", 2.0),
                                            std::max(1, param(pnh_, "topic_queue_size", 50)),
                                            param(pnh_, "watch_all", false),
-                                           // On the master's scale a counter's subscription is a
-                                           // local copy, cheaper for the starved robot than an
-                                           // XML-RPC poll of each node 4 times a second; elsewhere
-                                           // it would pull the data across the link a second time.
-                                           param(pnh_, "count_by_bus_stats", !is_master_),
+                                           // Off by default: see the README's ~count_by_bus_stats
+                                           // (the decision node's bandwidth rule still relies on
+                                           // the second copy to see a link AR's stream saturates).
+                                           param(pnh_, "count_by_bus_stats", false),
                                            positive(pnh_, "bus_stats_period_s", 0.25),
                                            positive(pnh_, "bus_stats_timeout_s", 0.25),
                                            [this](const std::string& publisher) { endBoostAtOutput(publisher); });

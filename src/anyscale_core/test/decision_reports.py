@@ -14,14 +14,18 @@ HEALTHY = {"/scan": 10.0, "/joint_states": 40.0, "/wheel_ticks": 40.0,
 PAPER = DecisionParams(bandwidth_hold_s=0.0)
 
 
-def reports(now, bandwidth=20.0, laptop=True, rates=None, laptop_running=(), laptop_load=0.0):
+def reports(now, bandwidth=20.0, laptop=True, rates=None, laptop_running=(), laptop_load=0.0,
+            silence=None):
     """scale -> its report received at `now`: the robot's, and the laptop's unless not `laptop`
-    (its link up with `bandwidth` Mbit/s, `laptop_running` its model nodes)."""
+    (its link up with `bandwidth` Mbit/s, `laptop_running` its model nodes). Every topic was
+    last received 0.01 s before, unless `silence` (topic -> s) says otherwise."""
     rates = {**HEALTHY, **(rates or {})}
-    out = {"robot": ScaleReport("robot", now, 40.0, 2.0, {}, rates)}
+    quiet = {**{t: 0.01 for t in HEALTHY}, **(silence or {})}
+    out = {"robot": ScaleReport("robot", now, 40.0, 2.0, {}, rates, topic_silence=quiet)}
     if laptop:
         out["laptop"] = ScaleReport("laptop", now, laptop_load, 4.0,
-                                    {n: 10.0 for n in laptop_running}, rates, True, bandwidth)
+                                    {n: 10.0 for n in laptop_running}, rates, True, bandwidth,
+                                    topic_silence=quiet)
     return out
 
 

@@ -1,6 +1,7 @@
 """The decision engine and the connections' tolerance: a slow connection moves its node back
-before the tolerance runs out, a moved node gets a start-up grace, and a silent topic's rate
-decays with its silence."""
+before the tolerance runs out, so does a silent one, a moved node gets a start-up grace, and a
+silent topic's rate decays with its silence."""
+from dataclasses import replace
 import math
 
 import pytest
@@ -9,7 +10,7 @@ from anyscale_core.allocators import make_allocator
 from anyscale_core.decision_engine import DecisionEngine
 from anyscale_core.decision_types import DecisionParams, effective_rate
 
-from decision_reports import remote, reports
+from decision_reports import PAPER, remote, reports
 
 
 def test_slow_connection_moves_its_node_back_before_the_tolerance_runs_out(engine):
@@ -21,6 +22,50 @@ def test_slow_connection_moves_its_node_back_before_the_tolerance_runs_out(engin
     result = engine.tick(reports(3.0, rates={"/amcl_pose": 1.0}, bandwidth=3.0), 3.0)
     assert result.violating == ["amcl"]                               # half the tolerance
     assert [(e.kind, e.node) for e in result.events] == [("migrate_back", "amcl")]
+
+
+def test_a_silence_over_its_share_of_the_tolerance_brings_the_node_home(engine):
+    engine.tick(reports(1.0), 1.0)
+    assert remote(engine) == ["amcl"]
+    # /amcl_pose (tolerance 2 s) silent 0.6 s, its window rate still 5 Hz: 30 % of 2 s.
+    # (3 Mbit/s: too little for AR's camera stream, so only AMCL is out.)
+    result = engine.tick(reports(2.0, bandwidth=3.0, silence={"/amcl_pose": 0.6}), 2.0)
+    assert result.violating == [] and remote(engine) == ["amcl"]
+    # 0.7 s: the 35 % of act_at_silence, whatever the window's rate still says.
+    result = engine.tick(reports(2.2, bandwidth=3.0, silence={"/amcl_pose": 0.7}), 2.2)
+    assert result.violating == ["amcl"]
+    [event] = [e for e in result.events if e.node == "amcl"]
+    assert event.kind == "migrate_back" and "silent 0.70 s on robot" in event.reason, event
+
+
+def test_a_silent_input_on_the_remote_scale_brings_the_node_home(engine):
+    engine.tick(reports(1.0), 1.0)
+    # /scan into AMCL, as received on the laptop where AMCL runs.
+    laptop_silent = reports(2.0)
+    laptop_silent["laptop"] = replace(laptop_silent["laptop"],
+                                      topic_silence={"/scan": 0.8})
+    assert engine.silence_alarm(laptop_silent["laptop"], 2.0)
+    assert not engine.silence_alarm(laptop_silent["robot"], 2.0)   # /scan is not judged there
+    result = engine.tick(laptop_silent, 2.0)
+    assert remote(engine) == [] and "/scan" in result.events[0].reason
+
+
+def test_silence_of_a_node_at_home_raises_no_alarm(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"), PAPER)
+    e.adopt_or_start(reports(0.0), 0.0)
+    assert remote(e) == []
+    silent = reports(1.0, silence={"/amcl_pose": 5.0, "/scan": 5.0})
+    assert not any(e.silence_alarm(r, 1.0) for r in silent.values())
+
+
+def test_act_at_silence_0_judges_rates_only(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"), replace(PAPER, act_at_silence=0.0))
+    e.adopt_or_start(reports(0.0), 0.0)
+    e.tick(reports(1.0), 1.0)
+    assert remote(e) == ["amcl"]
+    silent = reports(2.0, bandwidth=3.0, silence={"/amcl_pose": 1.9})
+    assert not e.silence_alarm(silent["robot"], 2.0)
+    assert e.tick(silent, 2.0).violating == [] and remote(e) == ["amcl"]
 
 
 def test_moved_node_gets_a_start_up_grace(testbed_ch):

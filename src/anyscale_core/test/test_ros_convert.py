@@ -40,6 +40,7 @@ def test_scale_report_keeps_live_model_nodes_and_effective_rates():
     assert r.topic_rates["/scan"] == 10.0
     assert r.topic_rates["/amcl_pose"] == pytest.approx(0.5)     # silent for 2 s
     assert r.topic_rates["/never"] == 0.0
+    assert r.topic_silence == {"/scan": pytest.approx(0.05), "/amcl_pose": 2.0, "/never": math.inf}
     assert r.link_up and r.bandwidth_mbps == 12.5
 
 

@@ -49,6 +49,7 @@ def read_params(get) -> NodeParams:
                             lease_s=number("lease_s", 3.0, 0.1),
                             status_timeout_s=number("status_timeout_s", 1.5, 0.1),
                             act_at_tolerance=number("act_at_tolerance", 0.5),
+                            act_at_silence=number("act_at_silence", 0.35),
                             startup_grace_s=number("startup_grace_s", 5.0),
                             cpu_smoothing_s=number("cpu_smoothing_s", 2.0),
                             restart=BackoffParams(number("restart_delay_s", 1.0),
@@ -59,8 +60,9 @@ def read_params(get) -> NodeParams:
                             bandwidth_stay_margin=number("bandwidth_stay_margin", 0.15),
                             weak_link_mbps=number("weak_link_mbps", 0.0),
                             hold_after_loss_s=number("hold_after_loss_s", 0.0))
-    if engine.act_at_tolerance > 1.0:
-        raise ParamError(f"~act_at_tolerance: expected 0..1, got {engine.act_at_tolerance:g}")
+    for name in ("act_at_tolerance", "act_at_silence"):
+        if getattr(engine, name) > 1.0:
+            raise ParamError(f"~{name}: expected 0..1, got {getattr(engine, name):g}")
     if engine.bandwidth_stay_margin > engine.bandwidth_margin:
         raise ParamError(f"~bandwidth_stay_margin ({engine.bandwidth_stay_margin:g}) must not "
                          f"exceed ~bandwidth_margin ({engine.bandwidth_margin:g}): a node would "

@@ -120,9 +120,12 @@ class DecisionNode(AgentActions):
             before = self.reports.get(msg.scale)
             self.reports[msg.scale] = report
             self.statuses[msg.scale] = msg
-        if before is not None and (before.link_up and not report.link_up
-                                   or set(report.ended) - set(before.ended)):
-            self.wake.set()         # a link lost (e.g. the uplink's carrier), a node ended
+            silent = self.engine.silence_alarm(report, report.received_at)
+        if silent or before is not None and (before.link_up and not report.link_up
+                                             or set(report.ended) - set(before.ended)):
+            # a link lost (e.g. the uplink's carrier), a node ended, a remote node's connection
+            # silent too long: each is a return that a period's wait would make later
+            self.wake.set()
 
     def _on_pose(self, msg, node):
         params = conv.handoff_params_from_pose(msg)
@@ -328,7 +331,7 @@ class DecisionNode(AgentActions):
         with self.lock:
             violating = list(self.violating)
         if violating:
-            stat.summary(DiagnosticStatus.WARN, "below freq_min: " + ", ".join(violating))
+            stat.summary(DiagnosticStatus.WARN, "spending a tolerance (below freq_min or silent): " + ", ".join(violating))
         else:
             stat.summary(DiagnosticStatus.OK, "every judged connection within its tolerance")
         return stat

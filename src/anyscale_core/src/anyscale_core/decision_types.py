@@ -14,6 +14,9 @@ class DecisionParams:
     lease_s: float = 3.0                # remote instances end this long after the last renewal
     status_timeout_s: float = 1.5       # a remote scale silent this long counts as link down
     act_at_tolerance: float = 0.5       # move back once this share of a tolerance is spent
+    # ... or once a connection of a remote node has been silent for this share of its tolerance
+    # (0: off): see DecisionEngine._silent_connections.
+    act_at_silence: float = 0.35
     startup_grace_s: float = 5.0        # a moved node's connections are not judged this long
     cpu_smoothing_s: float = 2.0        # time constant of the background-load filter
     restart: BackoffParams = BackoffParams()  # nodes that end unasked: at once, then backing off
@@ -43,6 +46,8 @@ class ScaleReport:
     bandwidth_mbps: float = math.nan             # measured estimate; NaN = not yet measured
     standby_cpu: float = 0.0                     # warm standbys' CPU, % of one core
     ended: Mapping[str, str] = field(default_factory=dict)  # node -> how it ended there
+    # topic -> seconds since its last message on this scale when the agent sampled (inf: none)
+    topic_silence: Mapping[str, float] = field(default_factory=dict)
 
 
 def effective_rate(rate_hz: float, last_message_age_s: float) -> float:

@@ -36,13 +36,14 @@ def scale_report_from_msg(msg, received_at: float, model_node_names: Iterable[st
     standby = sum(float(p.cpu_percent) for p in msg.nodes if p.state == NodeProcess.STANDBY)
     rates = {t.topic: effective_rate(float(t.rate_hz), float(t.last_message_age_s))
              for t in msg.topics}
+    silence = {t.topic: float(t.last_message_age_s) for t in msg.topics}
     capacity = float(msg.cpu_quota_cores) if msg.cpu_quota_cores > 0 else float(msg.cores)
     # On the master, link.up is the carrier of its uplink (true if none is watched); it has
     # no bandwidth estimate, its roscore being local.
     link_up = bool(msg.link.up)
     bandwidth = math.nan if msg.is_master else float(msg.link.bandwidth_mbps)
     return ScaleReport(msg.scale, received_at, float(msg.cpu_percent), capacity, running,
-                       rates, link_up, bandwidth, standby, ended)
+                       rates, link_up, bandwidth, standby, ended, silence)
 
 
 def how_it_ended(process) -> str:

@@ -85,7 +85,7 @@ class PaperAllocator:
             if not up[assign[i]]:
                 forced[i] = f"link to {ch.scale_names[assign[i]]} down"
             elif i in ctx.violating:
-                forced[i] = f"connection below freq_min for its tolerance: {ctx.violating[i]}"
+                forced[i] = f"connection spending its tolerance: {ctx.violating[i]}"
         cpu = scale_cpu(ch, assign, state.load_vector(ch))
         mem = scale_memory(ch, assign)
         for k in range(ch.num_scales):

@@ -331,7 +331,8 @@ class DecisionNode(AgentActions):
         with self.lock:
             violating = list(self.violating)
         if violating:
-            stat.summary(DiagnosticStatus.WARN, "spending a tolerance (below freq_min or silent): " + ", ".join(violating))
+            stat.summary(DiagnosticStatus.WARN, "spending a tolerance (below freq_min or silent): "
+                         + ", ".join(violating))
         else:
             stat.summary(DiagnosticStatus.OK, "every judged connection within its tolerance")
         return stat

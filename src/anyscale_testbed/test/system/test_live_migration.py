@@ -135,8 +135,9 @@ def test_2_bandwidth_below_ars_need_brings_ar_back_and_amcl_stays(run, phases):
             if e.kind == "migrate_back" and weak_at <= e.decided_t < down_at]
     assert [e.node for e in back][:1] in ([], ["ar_recognition"]), context
     # Either rule may fire first on the weak link: the bandwidth estimate falling below AR's
-    # need, or AR's camera connection falling below its freq_min for part of its tolerance.
-    assert not back or "bandwidth" in back[0].reason or "below freq_min" in back[0].reason, \
+    # need, or a connection of AR spending part of its tolerance (below freq_min, or silent).
+    assert not back or "bandwidth" in back[0].reason or \
+        "spending its tolerance" in back[0].reason, \
         context
 
 

@@ -14,7 +14,7 @@ class AllocationContext:
     now: float = 0.0                               # s
     hysteresis_s: float = 0.0                      # the paper's T
     migrated_back_at: Mapping[int, float] = field(default_factory=dict)  # node -> time (s)
-    # node -> which of its connections is below freq_min, and for how long (for the reason)
+    # node -> which of its connections spends its tolerance, and how (for the reason)
     violating: Mapping[int, str] = field(default_factory=dict)
 
     def held_on_master(self, i: int) -> bool:

@@ -2,6 +2,7 @@
 resuming from the runs recorded (also under the other order's keys), and the table and figures
 it writes (each run faked by a synthetic record)."""
 import os
+import shutil
 
 import numpy as np
 import pytest
@@ -12,7 +13,7 @@ from anyscale_nav_demo.results import configuration_runs
 from anyscale_testbed.evaluation_run import (amcl_bandwidth_mbps, evaluation_plan, parse_args,
                                              parse_seeds, run_argv, run_of_key, runs_to_collect,
                                              select_runs)
-from test_evaluation_table import record
+from test_evaluation_table import on, record
 
 
 def test_the_grouped_plan_is_baselines_seeded_tests_per_allocator_and_best_case():
@@ -119,6 +120,18 @@ def test_normalise_cpu_is_passed_to_every_run_only_when_asked_for():
         assert argv[1:4] == ["run_testbed.py", "--world", "office_floor"]
 
 
+def test_a_given_quota_is_passed_to_every_run_and_a_bad_one_refused(capsys):
+    args = parse_args(["--robot-cpu", "0.3"], "out")
+    for run in evaluation_plan([1]):
+        argv = run_argv(run, args, "run_testbed.py", "out/x", args.robot_cpu)
+        assert argv[argv.index("--robot-cpu") + 1] == "0.3"
+    assert parse_args([], "out").robot_cpu == "auto"
+    for bad in ("fast", "0", "-1"):
+        with pytest.raises(SystemExit):
+            parse_args(["--robot-cpu", bad], "out")
+        assert "--robot-cpu" in capsys.readouterr().err
+
+
 def test_amcl_moves_its_scans_and_its_pose_over_the_link():
     from anyscale_testbed.demo_run import nav_demo_path
     assert amcl_bandwidth_mbps(nav_demo_path("config", "testbed.yaml")) == pytest.approx(0.22)
@@ -158,7 +171,7 @@ def test_the_evaluation_runs_what_is_not_recorded_yet_and_writes_table_and_figur
     monkeypatch.setattr(evaluation_run, "start_on_the_testbed", lambda program: None)
     out = str(tmp_path / "eval")
     argv = ["--world", "small_loop", "--seeds", "1", "--order", "grouped", "--baseline-runs", "1",
-            "--runs", "baseline,paper", "--duration", "50", "--out", out]
+            "--runs", "baseline,paper", "--duration", "50", "--robot-cpu", "0.34", "--out", out]
     # A path that cannot run: were the fake not in place, nothing would start a test bed.
     assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", argv) == 0
     assert [a[a.index("--link"):] for a in fake.argvs] == [
@@ -191,14 +204,15 @@ def test_the_paired_evaluation_runs_pairs_and_keeps_the_runs_recorded_in_the_gro
     monkeypatch.setattr(evaluation_run, "start_on_the_testbed", lambda program: None)
     out = str(tmp_path / "eval")
     grouped = ["--world", "small_loop", "--seeds", "1", "--order", "grouped",
-               "--baseline-runs", "1", "--runs", "baseline,paper", "--out", out]
+               "--baseline-runs", "1", "--runs", "baseline,paper", "--robot-cpu", "0.34",
+               "--out", out]
     # A baseline of another day: 300 s to complete.
     monkeypatch.setattr(evaluation_run, "run_logged", FakeRuns(baseline_done_t=310.0))
     assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", grouped) == 0
     fake = FakeRuns()           # today's: 200 s
     monkeypatch.setattr(evaluation_run, "run_logged", fake)
     paired = ["--world", "small_loop", "--seeds", "1,2", "--runs", "baseline,paper",
-              "--out", out]
+              "--robot-cpu", "0.34", "--out", out]
     capsys.readouterr()
     assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", paired) == 0
     assert [a[a.index("--link") + 1] for a in fake.argvs] == [
@@ -232,10 +246,63 @@ def test_fig5_colours_the_paths_by_configuration(tmp_path, monkeypatch):
     out = str(tmp_path / "eval")
     assert evaluation_run.main("unused", "/nonexistent/run_testbed.py",
                                ["--world", "small_loop", "--seeds", "1", "--runs", "paper",
-                                "--out", out]) == 0
+                                "--robot-cpu", "0.34", "--out", out]) == 0
     image = matplotlib.image.imread(os.path.join(out, "fig5_paths.png"))[:, :, :3]
     def has(colour):
         rgb = np.array([int(colour[i:i + 2], 16) / 255 for i in (1, 3, 5)])
         return bool(np.any(np.all(np.abs(image - rgb) < 0.02, axis=2)))
     from anyscale_testbed.evaluation_figures import CONFIGURATION_COLOURS
     assert has(CONFIGURATION_COLOURS[AMCL_ON_LAPTOP]) and has(CONFIGURATION_COLOURS[BOTH_ON_ROBOT])
+
+
+class MachineOfTheDay(FakeRuns):
+    """FakeRuns on a machine faster than the calibrated one: with every node home AMCL runs at
+    2 Hz at 0.27 cores, 2.82 Hz at the calibration file's 0.34 (a calibration run's record
+    holds only that rate)."""
+
+    def __call__(self, argv, out_dir):
+        if not os.path.basename(os.path.dirname(out_dir)).endswith("calibration"):
+            return super().__call__(argv, out_dir)
+        self.argvs.append(argv)
+        quota = float(argv[argv.index("--robot-cpu") + 1])
+        rec = record(done_t=None, mappings=[(0.0, on(), 0.0, 0.0)],
+                     amcl_hz=2.0 * (quota - 0.10) / 0.17)
+        os.makedirs(os.path.join(out_dir, "small_loop-fake"))
+        rec.save(os.path.join(out_dir, "small_loop-fake", "record.json"))
+        return 0
+
+
+def test_robot_cpu_auto_calibrates_each_pair_to_the_premise_and_keeps_it(
+        tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(evaluation_run, "start_on_the_testbed", lambda program: None)
+    monkeypatch.setattr(evaluation_run, "quota_cores", lambda robot, laptop: (0.34, 0.9))
+    fake = MachineOfTheDay()
+    monkeypatch.setattr(evaluation_run, "run_logged", fake)
+    out = str(tmp_path / "eval")
+    argv = ["--world", "small_loop", "--seeds", "1,2", "--runs", "baseline,paper", "--out", out]
+    assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", argv) == 0
+    outs = [a[a.index("--out") + 1] for a in fake.argvs]
+    quotas = [a[a.index("--robot-cpu") + 1] for a in fake.argvs]
+    # Pair 1: 0.34 cores read 2.82 Hz, the proportional step gave 0.276 (2.07 Hz: kept);
+    # pair 2 starts there and keeps it after one run.
+    assert [os.path.relpath(o, out) for o in outs] == [
+        "pair1-calibration/run1", "pair1-calibration/run2", "pair1-baseline", "pair1-paper",
+        "pair2-calibration/run1", "pair2-baseline", "pair2-paper"]
+    assert quotas == ["0.34", "0.276", "0.276", "0.276", "0.276", "0.276", "0.276"]
+    # Calibration runs are short and with every node home.
+    assert fake.argvs[0][fake.argvs[0].index("--link"):] == ["--link", "schedule", "--schedule",
+                                                             "[[0, 0]]"]
+    assert float(fake.argvs[0][fake.argvs[0].index("--duration") + 1]) < 200
+    printed = capsys.readouterr().out
+    assert "pair1-calibration: calibration: robot 0.34 cores, AMCL 2.82 Hz at home" in printed
+    assert "[1/4] pair1-baseline: pair 1: baseline (no migration), robot 0.276 cores" in printed
+    with open(os.path.join(out, "evaluation.md")) as f:
+        md = f.read()
+    assert "| pair1-calibration | 0.276 | 0.34 cores: 2.82 Hz, 0.276 cores: 2.07 Hz |" in md
+    # An interrupted evaluation resumes at the quota its pair was calibrated to.
+    for key in ("pair2-baseline", "pair2-paper"):
+        shutil.rmtree(os.path.join(out, key))
+    fake.argvs.clear()
+    assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", argv) == 0
+    assert [a[a.index("--robot-cpu") + 1] for a in fake.argvs] == ["0.276", "0.276"]
+    assert "pair2-calibration: robot 0.276 cores, calibrated already" in capsys.readouterr().out

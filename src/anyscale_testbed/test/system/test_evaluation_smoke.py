@@ -12,6 +12,8 @@ import sys
 
 import pytest
 
+from anyscale_testbed.demo_run import quota_cores
+
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "..", ".."))
 DURATION_S = 30.0
 RUNS = "pair1-baseline,pair1-paper"
@@ -20,10 +22,14 @@ OUTPUTS = ("evaluation.txt", "evaluation.md", "evaluation.csv", "fig5_paths.png"
 
 
 def evaluate(out, timeout_s):
+    # At the calibration file's quota: --robot-cpu auto's calibration runs (2 minutes each)
+    # are tested without the test bed (test_evaluation_run.py).
+    robot_cpu, _ = quota_cores(None, None)
     return subprocess.run(
         [sys.executable, os.path.join(ROOT, "scripts", "run_evaluation.py"), "--world",
          "small_loop", "--seeds", "1", "--runs", RUNS, "--duration",
-         str(DURATION_S), "--out", str(out)], capture_output=True, text=True, timeout=timeout_s)
+         str(DURATION_S), "--robot-cpu", str(robot_cpu), "--out", str(out)],
+        capture_output=True, text=True, timeout=timeout_s)
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,77 @@
+"""The robot's CPU quota for the day (issue 13's premise): the quota at which AMCL, with every
+node on the robot, runs at the premise's 2 Hz, found by short runs with the link down. Pure
+(no ROS, no test bed): the runs are the caller's `measure`.
+
+Why each evaluation calibrates: this shared VM's speed drifts, and with it AMCL's rate under a
+fixed quota (every node home at 0.34 cores: 2.39 Hz one morning, 3.27 Hz two days later, 1.77-
+3.18 Hz over a week), so a quota written into testbed_calibration.yaml holds the premise only on
+the day it was measured. A baseline off the premise makes every gain meaningless.
+
+The first step assumes AMCL's rate grows in proportion to the CPU left over by the robot's
+other nodes, quota - PRIOR_OTHER_CORES (three quotas measured on one day, 0.30-0.37 cores, lay
+on such a line); every later step is the secant through the last two measurements, which needs
+no assumption.
+"""
+from dataclasses import dataclass
+import math
+from typing import Callable, List, Sequence, Tuple
+
+from .premise_figures import PREMISE_AMCL_HZ
+
+PRIOR_OTHER_CORES = 0.12      # the first step's guess of what the other nodes use (see above)
+SETTLED_HZ = 0.2              # a quota whose AMCL rate is this close to the premise's is kept
+QUOTA_BOUNDS = (0.15, 0.8)    # cores: below, the drivers miss their rates; above, no premise
+MAX_RUNS = 3
+
+
+class CalibrationError(RuntimeError):
+    """A calibration run gave no AMCL rate (it failed, or AMCL never published)."""
+
+
+@dataclass(frozen=True)
+class QuotaPoint:
+    quota: float        # cores
+    amcl_hz: float      # AMCL's rate with every node home at that quota
+
+
+def next_quota(points: Sequence[QuotaPoint], target_hz: float = PREMISE_AMCL_HZ) -> float:
+    """The quota to try after `points` (in the order measured), within QUOTA_BOUNDS."""
+    last = points[-1]
+    quota = math.nan
+    if len(points) >= 2:
+        before = points[-2]
+        if last.quota != before.quota:
+            slope = (last.amcl_hz - before.amcl_hz) / (last.quota - before.quota)
+            if slope > 0:       # noise can make two close quotas read the wrong way round
+                quota = last.quota + (target_hz - last.amcl_hz) / slope
+    if math.isnan(quota):
+        quota = PRIOR_OTHER_CORES + (last.quota - PRIOR_OTHER_CORES) * target_hz / last.amcl_hz
+    return round(min(max(quota, QUOTA_BOUNDS[0]), QUOTA_BOUNDS[1]), 3)
+
+
+def settled(point: QuotaPoint, target_hz: float = PREMISE_AMCL_HZ) -> bool:
+    return abs(point.amcl_hz - target_hz) <= SETTLED_HZ
+
+
+def calibrate_quota(start_quota: float, measure: Callable[[float], float],
+                    log: Callable[[str], None] = print,
+                    max_runs: int = MAX_RUNS) -> Tuple[float, List[QuotaPoint]]:
+    """Measures AMCL's rate at start_quota, steps towards the premise until a measurement
+    settles or max_runs were made; returns the quota to run at and the measurements. After
+    max_runs without settling it is the last step's quota, not measured (said in the log)."""
+    quota, points = start_quota, []
+    for k in range(1, max_runs + 1):
+        hz = measure(quota)
+        if not (math.isfinite(hz) and hz > 0):
+            raise CalibrationError(f"calibration run {k} at {quota:g} cores gave no AMCL rate")
+        points.append(QuotaPoint(quota, hz))
+        if settled(points[-1]):
+            log(f"calibration: robot {quota:g} cores, AMCL {hz:.2f} Hz at home: kept")
+            return quota, points
+        step = next_quota(points)
+        log(f"calibration: robot {quota:g} cores, AMCL {hz:.2f} Hz at home "
+            f"(premise {PREMISE_AMCL_HZ:g} +- {SETTLED_HZ:g}): next {step:g} cores")
+        quota = step
+    log(f"calibration: not settled after {max_runs} runs; running at {quota:g} cores, "
+        f"the last step, unmeasured")
+    return quota, points

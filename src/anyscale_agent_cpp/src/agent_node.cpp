@@ -220,6 +220,14 @@ std::string AgentNode::locatePackage(const std::string& package) const
 void AgentNode::onSupervise(const ros::SteadyTimerEvent&)
 {
   supervisor_.poll();
+  // A node that ended unasked is restarted by the decision node, which learns of it from our
+  // status: sent now, not at the next sample (up to 1 / ~sample_rate_hz later), as every part
+  // of a restart on the robot counts against the output's tolerance.
+  if (const uint64_t exits = supervisor_.unrequestedExitCount(); exits != unrequested_exits_seen_)
+  {
+    unrequested_exits_seen_ = exits;
+    publishStatusNow();
+  }
   endBoosts();
   std::vector<std::string> expired;
   {

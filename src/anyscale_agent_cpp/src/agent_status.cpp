@@ -40,6 +40,11 @@ void AgentNode::onUplink(const ros::SteadyTimerEvent&)
     ROS_WARN("uplink %s lost its carrier (%s): the other scales are out of reach", uplink_interface_.c_str(),
              toString(carrier));
   // At once, not at the next sample: the decision node brings remote nodes home on this.
+  publishStatusNow();
+}
+
+void AgentNode::publishStatusNow()
+{
   anyscale_msgs::ScaleStatus s;
   {
     std::lock_guard<std::mutex> lock(sample_mutex_);

@@ -252,7 +252,10 @@ void Supervisor::recordExitLocked(const std::string& name, Record& r, int exit_c
   r.activation.reset();
   r.pidfd.reset();
   if (!r.info.stop_requested && !not_in_use)
+  {
     unrequested_exits_.push_back(name);
+    ++unrequested_exit_count_;
+  }
   // Members that outlive the leader are cleared the same way, continuing its sequence.
   if (groupExists(r.group.pgid))
     orphan_groups_.push_back(r.group);
@@ -334,6 +337,12 @@ std::vector<ProcessInfo> Supervisor::snapshot() const
     for (const auto& [name, r] : *slots)
       out.push_back(r.info);
   return out;
+}
+
+uint64_t Supervisor::unrequestedExitCount() const
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  return unrequested_exit_count_;
 }
 
 std::vector<std::string> Supervisor::takeUnrequestedExits()

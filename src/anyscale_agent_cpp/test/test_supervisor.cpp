@@ -35,6 +35,7 @@ TEST(Supervisor, ReportsExitCodeOfUnrequestedExit)
   const auto exits = s.takeUnrequestedExits();
   ASSERT_EQ(exits.size(), 1u);
   EXPECT_EQ(exits[0], "quitter");
+  EXPECT_EQ(s.unrequestedExitCount(), 1u) << "taking the names leaves the count";
 }
 
 TEST(Supervisor, StopEndsWithSigintAndLeavesNoZombie)
@@ -52,6 +53,7 @@ TEST(Supervisor, StopEndsWithSigintAndLeavesNoZombie)
   EXPECT_EQ(info.exit_code, -1);
   EXPECT_TRUE(processGone(pid));
   EXPECT_TRUE(s.takeUnrequestedExits().empty());
+  EXPECT_EQ(s.unrequestedExitCount(), 0u);
 }
 
 TEST(Supervisor, ChildIgnoringSigintGetsSigterm)

@@ -69,6 +69,7 @@ private:
   // Status (agent_status.cpp).
   void onSample(const ros::SteadyTimerEvent&);      // /proc, topics, link -> /anyscale/status
   void onUplink(const ros::SteadyTimerEvent&);      // carrier of ~uplink_interface; status on change
+  void publishStatusNow();  // the last sample with the processes as they are now
   void applyUplink(anyscale_msgs::LinkStatistics& link) const;
   std::vector<anyscale_msgs::NodeProcess> nodeProcesses();
 
@@ -116,6 +117,7 @@ private:
   double sample_period_s_ = 0.5;
   bool warm_start_ = true;          // ~warm_start: false ignores the model's launch.warm_start
   double standby_delay_s_ = 2.0;    // the next standby this long after the last one became the node
+  uint64_t unrequested_exits_seen_ = 0;  // the supervisor's count at the last status sent for one
   std::map<std::string, double> standby_due_;  // node -> steady time its standby may start
   std::map<std::string, int> last_standby_pid_;  // node -> pid of the standby started last
   StartBoosts boosts_;              // ~start_boost_nice, ~start_boost_s

@@ -153,6 +153,9 @@ public:
   std::vector<ProcessInfo> snapshot() const;
   // Names that exited since the previous call, without a stop request (crash, replacement).
   std::vector<std::string> takeUnrequestedExits();
+  // How many nodes exited without a stop request since the supervisor was made: a change tells
+  // a poller that one did, without taking the names from takeUnrequestedExits' caller.
+  uint64_t unrequestedExitCount() const;
 
   // Stops all processes and waits for them; used on shutdown.
   void stopAll();
@@ -217,6 +220,7 @@ private:
   std::map<std::string, Record> standbys_;  // their warm standbys
   std::vector<Group> orphan_groups_;  // leaders gone, members remain
   std::vector<std::string> unrequested_exits_;
+  uint64_t unrequested_exit_count_ = 0;
   NodeStateWriter state_file_;  // no path until adopt(): no state file
   std::optional<NodeStateWriter::Staged> staged_state_;  // for the StateLock to write
   std::string boot_id_;

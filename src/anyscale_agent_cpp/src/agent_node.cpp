@@ -227,6 +227,9 @@ void AgentNode::onSupervise(const ros::SteadyTimerEvent&)
   {
     unrequested_exits_seen_ = exits;
     publishStatusNow();
+    for (const auto& p : supervisor_.snapshot())
+      if (p.state == ProcState::Exited && !p.stop_requested)
+        ended_unasked_.insert(p.name);
   }
   endBoosts();
   std::vector<std::string> expired;

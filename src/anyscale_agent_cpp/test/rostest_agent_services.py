@@ -25,6 +25,13 @@ def alive(pid):
         return False
 
 
+def sched_idle(pid):
+    try:
+        return os.sched_getscheduler(pid) == os.SCHED_IDLE
+    except ProcessLookupError:
+        return False
+
+
 MODEL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "config", "test_model.yaml")
 
 
@@ -142,7 +149,7 @@ class AgentServicesTest(unittest.TestCase):
         return next((n for n in (agent or self.agent).list().nodes
                      if n.name == node and n.state == NodeProcess.STANDBY), None)
 
-    def test_warm_standby_becomes_the_node_and_is_prepared_again(self):
+    def test_warm_standby_becomes_the_node_and_is_prepared_again_at_once_after_a_crash(self):
         standby = wait_for(lambda: self._standby("/warm_talker"), 20.0)
         self.assertTrue(standby, "no warm standby of /warm_talker (launch.warm_start: true)")
         self.assertTrue(alive(standby.pid))
@@ -173,6 +180,22 @@ class AgentServicesTest(unittest.TestCase):
         second_start = self._start("warm_talker")
         self.assertEqual((second_start.success, second_start.pid), (True, next_standby.pid),
                          second_start.message)
+        # Beside a node that never ended unasked here, the standby imports in SCHED_IDLE ...
+        beside = wait_for(lambda: self._standby("/warm_talker"), 15.0)
+        self.assertTrue(beside, "no new standby while the node runs")
+        self.assertTrue(wait_for(lambda: sched_idle(beside.pid), 5.0))
+        time.sleep(0.5)
+        self.assertTrue(sched_idle(beside.pid), "left SCHED_IDLE though the node never crashed")
+        # ... and beside one that crashed here, at the nodes' priority: it may crash again.
+        os.kill(second_start.pid, signal.SIGSEGV)
+        self.assertTrue(wait_for(
+            lambda: self.agent.node("/warm_talker").state == NodeProcess.EXITED, 5.0))
+        restart = self._start("warm_talker")
+        self.assertEqual((restart.success, restart.pid), (True, beside.pid), restart.message)
+        after_crash = wait_for(lambda: self._standby("/warm_talker"), 15.0)
+        self.assertTrue(after_crash, "no new standby after the restart")
+        self.assertTrue(wait_for(lambda: not sched_idle(after_crash.pid), 5.0),
+                        "the standby of a node that crashed here still imports in SCHED_IDLE")
         self.agent.stop(node="warm_talker", wait=True)
 
     def test_lease_renewed_keeps_running_then_expires(self):

@@ -89,7 +89,7 @@ private:
 
   // Warm standbys (agent_services.cpp): one per warm_start node, also while it runs here.
   void keepStandbysReady();
-  void hurryStandby(const std::string& name, int pid);
+  void hurryStandby(const std::string& name, int pid, const char* why);
   std::vector<std::string> standbyArgv(const NodeDecl& decl);
   std::string logFile(const std::string& node) const;  // <log_dir>/<name with '/' as '.'>.log
   // The name a node runs under on this scale (see instanceName): the supervisor keeps the
@@ -118,6 +118,7 @@ private:
   bool warm_start_ = true;          // ~warm_start: false ignores the model's launch.warm_start
   double standby_delay_s_ = 2.0;    // the next standby this long after the last one became the node
   uint64_t unrequested_exits_seen_ = 0;  // the supervisor's count at the last status sent for one
+  std::set<std::string> ended_unasked_;   // nodes that ended unasked here: standbys import at once
   std::map<std::string, double> standby_due_;  // node -> steady time its standby may start
   std::map<std::string, int> last_standby_pid_;  // node -> pid of the standby started last
   StartBoosts boosts_;              // ~start_boost_nice, ~start_boost_s

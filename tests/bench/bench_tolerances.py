@@ -13,10 +13,15 @@ record.json), then a total, then each kind of move's output gaps (median, p90, w
 the node's own longest silences in windows of the same length while nothing moves
 (move_gap_report.py); it writes them to DIR/tolerances.csv and DIR/tolerances.md. A run
 takes about 400 s on the office floor and needs the machine to itself. Runs already recorded in
---out are not run again: an interrupted bench goes on where it stopped. Run with the workspace
-sourced:
+--out are not run again: an interrupted bench goes on where it stopped.
+
+The premise (AMCL at 2 Hz with every node on the robot) is what the tolerances are judged at,
+and this shared VM's speed drifts over the hours of a bench. With --robot-cpu auto (the
+default) each run is preceded by short runs with every node home that find the robot's quota
+for the moment (quota_for_the_day.py, about 2 minutes each, usually one), kept in
+DIR/runNN-calibration/ and listed in tolerances.md. Run with the workspace sourced:
     sudo -E /usr/bin/python3 tests/bench/bench_tolerances.py --runs 10
-    sudo -E /usr/bin/python3 tests/bench/bench_tolerances.py --runs 10 --normalise-cpu
+    sudo -E /usr/bin/python3 tests/bench/bench_tolerances.py --runs 10 --robot-cpu 0.30
 """
 import argparse
 import datetime
@@ -30,6 +35,9 @@ import yaml
 try:
     from anyscale_testbed.bench_runs import latest_record, run_logged, start_on_the_testbed
     from anyscale_testbed.move_gap_report import move_gap_lines
+    from anyscale_testbed.quota_calibration import CalibrationError
+    from anyscale_testbed.quota_for_the_day import (QuotaForTheDay, calibration_markdown,
+                                                    parse_robot_cpu)
     from anyscale_testbed.tolerance_report import (format_markdown, format_table, row_cells, run_row,
                                                    topics_of, write_csv)
 except ImportError as e:
@@ -66,10 +74,10 @@ def parse_args(argv):
                         "one (this shared VM's speed drifts: AMCL with every node home ran "
                         "3.18-1.77 Hz in 7 runs at the same quota); see run_testbed.py --help. "
                         "Off by default; its first validation cut the robot by 40 %%: see the anyscale_testbed README")
-    p.add_argument("--robot-cpu", type=float, default=None, metavar="CORES",
-                   help="run_testbed.py --robot-cpu: the robot's CPU quota (default: the "
-                        "calibration file's). This host's speed drifts; bench_premise.py finds "
-                        "the quota at which AMCL runs its 2 Hz with every node home today")
+    p.add_argument("--robot-cpu", default="auto", metavar="CORES|auto",
+                   help="the robot's CPU quota of every run (run_testbed.py --robot-cpu); auto "
+                        "(default): found before each run, the quota at which AMCL runs its "
+                        "2 Hz with every node home at that moment (this host's speed drifts)")
     p.add_argument("--record-inputs", default=DEFAULT_INPUTS, metavar="TOPICS",
                    help="run_testbed.py --record-inputs: the inputs whose gaps each violation's "
                         f"cause names (default: {DEFAULT_INPUTS}, the small topics that feed AMCL; "
@@ -79,8 +87,10 @@ def parse_args(argv):
     args = p.parse_args(argv)
     if args.runs < 1:
         p.error("--runs: at least 1")
-    if args.robot_cpu is not None and not 0.05 <= args.robot_cpu <= 2.0:
-        p.error(f"--robot-cpu: expected 0.05 to 2 cores, got {args.robot_cpu}")
+    try:
+        args.robot_cpu = parse_robot_cpu(args.robot_cpu)     # None: auto
+    except ValueError as e:
+        p.error(str(e))
     if args.first_seed < 1:
         p.error(f"--first-seed: expected >= 1 (0 is the unvaried model), got {args.first_seed}")
     return args
@@ -99,20 +109,21 @@ def goal_count(world: str) -> int:
         sys.exit(f"bench: --world {world}: cannot read its goals from {path}: {e}")
 
 
-def run_argv(args, start_goal: int, seed: int, out_dir: str):
-    """run_testbed.py's command line for one run of the main job's scenario."""
+def run_argv(args, start_goal: int, seed: int, out_dir: str, robot_cpu=None):
+    """run_testbed.py's command line for one run of the main job's scenario; robot_cpu: its
+    robot's quota (None: the calibration file's)."""
     return ([sys.executable, RUN_TESTBED, "--world", args.world, "--link", "coverage",
              "--seed", str(seed), "--allocator", args.allocator, "--start-goal", str(start_goal),
              "--duration", str(args.duration), "--out", out_dir]
             + (["--normalise-cpu"] if args.normalise_cpu else [])
-            + (["--robot-cpu", str(args.robot_cpu)] if args.robot_cpu is not None else [])
+            + (["--robot-cpu", f"{robot_cpu:g}"] if robot_cpu is not None else [])
             + (["--record-inputs", args.record_inputs] if args.record_inputs else []))
 
 
-def run_once(args, start_goal: int, seed: int, out_dir: str) -> int:
+def run_once(args, start_goal: int, seed: int, out_dir: str, robot_cpu=None) -> int:
     """One run of the main job's scenario; its console output goes to out_dir/console.log.
     Returns run_testbed.py's exit code."""
-    return run_logged(run_argv(args, start_goal, seed, out_dir), out_dir)
+    return run_logged(run_argv(args, start_goal, seed, out_dir, robot_cpu), out_dir)
 
 
 def main(argv=None) -> int:
@@ -125,6 +136,7 @@ def main(argv=None) -> int:
     print(f"bench: {args.runs} runs on {args.world}, coverage link, allocator {args.allocator}; "
           f"results in {out}", flush=True)
     rows, records = [], []
+    quotas = QuotaForTheDay(RUN_TESTBED, args.world, out, args.robot_cpu)
     try:
         for k in range(args.runs):
             start_goal = (args.first_start + k) % goals
@@ -135,10 +147,12 @@ def main(argv=None) -> int:
                 print(f"[{k + 1}/{args.runs}] recorded already, not run again", flush=True)
                 code, took = 0, "recorded"
             else:
-                print(f"[{k + 1}/{args.runs}] start at goal {start_goal}, seed {seed}, log "
+                robot_cpu = quotas.quota(f"run{k + 1:02d}-calibration")
+                at = f", robot {robot_cpu:g} cores" if robot_cpu is not None else ""
+                print(f"[{k + 1}/{args.runs}] start at goal {start_goal}, seed {seed}{at}, log "
                       f"{run_dir}/console.log", flush=True)
                 began = time.monotonic()
-                code = run_once(args, start_goal, seed, run_dir)
+                code = run_once(args, start_goal, seed, run_dir, robot_cpu)
                 took = f"done in {time.monotonic() - began:.0f} s"
                 recorded = latest_record(run_dir)
             rows.append(run_row(k + 1, start_goal, code, recorded, seed))
@@ -151,6 +165,8 @@ def main(argv=None) -> int:
             for v in rows[-1].violations:
                 print(f"    VIOLATION {v.topic} silent {v.silence_s:.2f} s > tolerance "
                       f"{v.tolerance_s:g} s at t={v.start_t:.1f} s: {v.cause}", flush=True)
+    except CalibrationError as e:
+        print(f"bench: {e}; the table has the runs that ended", flush=True)
     except KeyboardInterrupt:
         print("bench: interrupted; the table has the runs that ended", flush=True)
     if not rows:
@@ -163,6 +179,7 @@ def main(argv=None) -> int:
         f.write(format_markdown(rows, f"Tolerance bench: {len(rows)} runs on {args.world}, "
                                       f"coverage link, allocator {args.allocator}"))
         f.write("\n## Output gaps per move\n\n" + "".join(f"- {line}\n" for line in gaps))
+        f.write(calibration_markdown(out))
     print(f"bench: {out}/tolerances.csv and tolerances.md", flush=True)
     return 0 if all(not r.violations for r in rows) else 1
 

@@ -41,13 +41,16 @@ def test_the_tolerance_bench_passes_normalise_cpu_only_when_asked_for(tolerances
     assert argv.count("--normalise-cpu") == 1 and argv[argv.index("--out") + 1] == "out/run01"
 
 
-def test_the_tolerance_bench_sets_the_robot_quota_only_when_asked_for(tolerances, capsys):
+def test_the_tolerance_bench_runs_at_the_quota_for_the_day_or_the_one_given(tolerances, capsys):
+    assert tolerances.parse_args([]).robot_cpu is None          # auto: found before each run
     assert "--robot-cpu" not in tolerances.run_argv(tolerances.parse_args([]), 0, 11, "out/run01")
-    argv = tolerances.run_argv(tolerances.parse_args(["--robot-cpu", "0.27"]), 0, 11, "out/run01")
+    given = tolerances.parse_args(["--robot-cpu", "0.27"])
+    argv = tolerances.run_argv(given, 0, 11, "out/run01", given.robot_cpu)
     assert argv[argv.index("--robot-cpu") + 1] == "0.27"
-    with pytest.raises(SystemExit) as ended:
-        tolerances.parse_args(["--robot-cpu", "0"])
-    assert ended.value.code == 2 and "--robot-cpu: expected 0.05 to 2 cores, got 0.0" in capsys.readouterr().err
+    for bad, said in (("0", "expected 0.05 to 2 cores, got 0"), ("lots", "expected cores or auto")):
+        with pytest.raises(SystemExit) as ended:
+            tolerances.parse_args(["--robot-cpu", bad])
+        assert ended.value.code == 2 and f"--robot-cpu: {said}" in capsys.readouterr().err
 
 
 def test_the_premise_bench_passes_normalise_cpu_only_when_asked_for(premise):
@@ -92,3 +95,33 @@ def test_the_benches_help_prints_and_exits_0(bench, capsys):
         load_bench(bench).parse_args(["--help"])
     assert ended.value.code == 0
     assert "--normalise-cpu" in capsys.readouterr().out
+
+
+def test_the_tolerance_bench_finds_the_quota_before_each_run(tolerances, tmp_path, monkeypatch,
+                                                             capsys):
+    from anyscale_testbed import quota_for_the_day
+    from test_evaluation_table import on, record
+    argvs = []
+
+    def fake_run(argv, out_dir):
+        """A machine on which AMCL runs 2 Hz at home at 0.27 cores, 2.82 Hz at 0.34."""
+        argvs.append(argv)
+        quota = float(argv[argv.index("--robot-cpu") + 1])
+        rec = record(mappings=[(0.0, on(), 0.0, 0.0)], amcl_hz=2.0 * (quota - 0.10) / 0.17)
+        os.makedirs(os.path.join(out_dir, "office_floor-fake"))
+        rec.save(os.path.join(out_dir, "office_floor-fake", "record.json"))
+        return 0
+    monkeypatch.setattr(tolerances, "run_logged", fake_run)
+    monkeypatch.setattr(quota_for_the_day, "run_logged", fake_run)
+    monkeypatch.setattr(quota_for_the_day, "quota_cores", lambda robot, laptop: (0.34, 0.9))
+    monkeypatch.setattr(tolerances, "start_on_the_testbed", lambda program: None)
+    monkeypatch.setattr(tolerances, "goal_count", lambda world: 5)
+    out = tmp_path / "bench"
+    tolerances.main(["--runs", "2", "--out", str(out)])
+    assert [os.path.relpath(a[a.index("--out") + 1], out) for a in argvs] == [
+        "run01-calibration/run1", "run01-calibration/run2", "run01", "run02-calibration/run1",
+        "run02"]
+    assert [a[a.index("--robot-cpu") + 1] for a in argvs] == ["0.34", "0.276", "0.276", "0.276",
+                                                             "0.276"]
+    assert "[1/2] start at goal 0, seed 11, robot 0.276 cores" in capsys.readouterr().out
+    assert "| run02-calibration | 0.276 | 0.276 cores: 2.07 Hz |" in (out / "tolerances.md").read_text()

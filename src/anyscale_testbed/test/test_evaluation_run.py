@@ -7,7 +7,7 @@ import shutil
 import numpy as np
 import pytest
 
-from anyscale_testbed import evaluation_run
+from anyscale_testbed import evaluation_run, quota_for_the_day
 from anyscale_testbed.evaluation_figures import AMCL_ON_LAPTOP, BOTH_ON_ROBOT
 from anyscale_nav_demo.results import configuration_runs
 from anyscale_testbed.evaluation_run import (amcl_bandwidth_mbps, evaluation_plan, parse_args,
@@ -125,7 +125,7 @@ def test_a_given_quota_is_passed_to_every_run_and_a_bad_one_refused(capsys):
     for run in evaluation_plan([1]):
         argv = run_argv(run, args, "run_testbed.py", "out/x", args.robot_cpu)
         assert argv[argv.index("--robot-cpu") + 1] == "0.3"
-    assert parse_args([], "out").robot_cpu == "auto"
+    assert parse_args([], "out").robot_cpu is None       # auto: calibrated for the day
     for bad in ("fast", "0", "-1"):
         with pytest.raises(SystemExit):
             parse_args(["--robot-cpu", bad], "out")
@@ -275,9 +275,10 @@ class MachineOfTheDay(FakeRuns):
 def test_robot_cpu_auto_calibrates_each_pair_to_the_premise_and_keeps_it(
         tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(evaluation_run, "start_on_the_testbed", lambda program: None)
-    monkeypatch.setattr(evaluation_run, "quota_cores", lambda robot, laptop: (0.34, 0.9))
+    monkeypatch.setattr(quota_for_the_day, "quota_cores", lambda robot, laptop: (0.34, 0.9))
     fake = MachineOfTheDay()
     monkeypatch.setattr(evaluation_run, "run_logged", fake)
+    monkeypatch.setattr(quota_for_the_day, "run_logged", fake)
     out = str(tmp_path / "eval")
     argv = ["--world", "small_loop", "--seeds", "1,2", "--runs", "baseline,paper", "--out", out]
     assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", argv) == 0

@@ -27,13 +27,12 @@ the machine should be left to them. Root; run with the workspace sourced:
 """
 import argparse
 from dataclasses import dataclass
-import json
 import math
 import os
 import re
 import sys
 import time
-from typing import Dict, Iterable, List, Optional, Sequence, Tuple
+from typing import Iterable, List, Optional, Sequence, Tuple
 
 import yaml
 
@@ -43,27 +42,23 @@ from anyscale_core.model_loader import load_model
 from anyscale_nav_demo.occupancy_map import MapError, load_map
 
 from .bench_runs import latest_record, run_logged, start_on_the_testbed
-from .demo_run import nav_demo_path, quota_cores
+from .demo_run import nav_demo_path
 from .evaluation_figures import (RunFigures, configurations_along_path, run_figures,
                                  truth_in_window)
 from .evaluation_plots import draw_fig5, draw_fig6
 from .evaluation_table import format_markdown, format_table, write_csv
 from .link_shaper import coverage_grid, coverage_model_from_grid
-from .premise_figures import START_UP_S, figures_with_every_node_home, premise_off_note
-from .quota_calibration import CalibrationError, QuotaPoint, calibrate_quota
+from .premise_figures import premise_off_note
+from .quota_calibration import CalibrationError
+from .quota_for_the_day import (EVERY_NODE_HOME_LINK, QuotaForTheDay, calibration_markdown,
+                                parse_robot_cpu)
 from .testbed_record import TestbedRecord
 
 ALLOCATORS = ("paper", "paper_local", "optimal")
 ORDERS = ("paired", "grouped")
-# No migration: the link is down throughout, so every node stays on the robot.
-BASELINE_SCHEDULE = "[[0, 0]]"
 # The network everywhere: the best rate of the WiFi model (54 Mbit/s PHY, half usable) always.
 BEST_CASE_SCHEDULE = "[[0, 27]]"
 EXIT_CODE_FILE = "exit_code"
-CALIBRATION_FILE = "calibration.json"
-# A calibration run: START_UP_S of start-up, then this long of AMCL's rate with every node home
-# (about 150 poses at the premise's 2 Hz).
-CALIBRATION_MEASURE_S = 75.0
 
 
 @dataclass(frozen=True)
@@ -77,7 +72,7 @@ class PlannedRun:
 
 
 def _baseline_argv() -> List[str]:
-    return ["--link", "schedule", "--schedule", BASELINE_SCHEDULE]
+    return list(EVERY_NODE_HOME_LINK)
 
 
 def _seeded_argv(allocator: str, seed: int) -> List[str]:
@@ -242,13 +237,10 @@ def parse_args(argv, default_out: str):
                         "1-3 runs), kept in DIR/<pair>-calibration/calibration.json")
     p.add_argument("--out", default=default_out, help=f"results directory ({default_out})")
     args = p.parse_args(argv)
-    if args.robot_cpu != "auto":
-        try:
-            args.robot_cpu = float(args.robot_cpu)
-        except ValueError:
-            p.error(f"--robot-cpu: expected cores or auto, got {args.robot_cpu!r}")
-        if not 0 < args.robot_cpu <= 64:
-            p.error(f"--robot-cpu: expected cores > 0, got {args.robot_cpu:g}")
+    try:
+        args.robot_cpu = parse_robot_cpu(args.robot_cpu)
+    except ValueError as e:
+        p.error(str(e))
     if args.baseline_runs is not None and args.order == "paired":
         p.error("--baseline-runs: only with --order grouped (paired: a baseline per seed, run "
                 "just before its test)")
@@ -301,82 +293,6 @@ def run_one(run: PlannedRun, args, run_testbed: str, run_dir: str,
 def calibration_key(run: PlannedRun) -> str:
     """The calibration a run is made at: its pair's, or the one before the unpaired runs."""
     return f"pair{run.pair}-calibration" if run.pair else "calibration"
-
-
-def read_calibration(path: str) -> Optional[Tuple[float, List[QuotaPoint]]]:
-    """A calibration.json written by write_calibration; None if there is none or it is not
-    one (then the calibration runs again)."""
-    try:
-        with open(path) as f:
-            d = json.load(f)
-        return float(d["robot_cpu"]), [QuotaPoint(float(q), float(hz)) for q, hz in d["points"]]
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
-
-
-def write_calibration(path: str, quota: float, points: Sequence[QuotaPoint]):
-    with open(path, "w") as f:
-        json.dump({"robot_cpu": quota, "points": [[p.quota, p.amcl_hz] for p in points]}, f)
-        f.write("\n")
-
-
-class QuotaForTheDay:
-    """The robot's quota of each run under --robot-cpu auto: each calibration (calibration_key)
-    measured once, before its first run, and kept in its directory, so an interrupted
-    evaluation resumes with the quota its recorded runs had."""
-
-    def __init__(self, args, run_testbed: str, out: str):
-        self.args, self.run_testbed, self.out = args, run_testbed, out
-        self.quotas: Dict[str, float] = {}
-        self.start = quota_cores(None, 1.0)[0]    # the calibration file's, for the first one
-
-    def quota(self, run: PlannedRun) -> Optional[float]:
-        if self.args.robot_cpu != "auto":
-            return self.args.robot_cpu
-        key = calibration_key(run)
-        if key not in self.quotas:
-            cal_dir = os.path.join(self.out, key)
-            os.makedirs(cal_dir, exist_ok=True)
-            saved = read_calibration(os.path.join(cal_dir, CALIBRATION_FILE))
-            if saved is None:
-                runs = iter(range(1, 100))
-                quota, points = calibrate_quota(
-                    self.start, lambda q: self._home_rate(q, cal_dir, next(runs)),
-                    log=lambda line: print(f"  {key}: {line}", flush=True))
-                write_calibration(os.path.join(cal_dir, CALIBRATION_FILE), quota, points)
-            else:
-                quota = saved[0]
-                print(f"  {key}: robot {quota:g} cores, calibrated already", flush=True)
-            self.quotas[key] = self.start = quota   # the next calibration starts from here
-        return self.quotas[key]
-
-    def _home_rate(self, quota: float, cal_dir: str, k: int) -> float:
-        """AMCL's rate with every node home after START_UP_S, in a short baseline run."""
-        run_dir = os.path.join(cal_dir, f"run{k}")
-        argv = [sys.executable, self.run_testbed, "--world", self.args.world, "--duration",
-                f"{START_UP_S + CALIBRATION_MEASURE_S:g}", "--robot-cpu", f"{quota:g}",
-                "--out", run_dir] + _baseline_argv()
-        run_logged(argv, run_dir)
-        rec = latest_record(run_dir)
-        row = figures_with_every_node_home(rec, START_UP_S) if rec is not None else None
-        return row["amcl_hz"] if row else math.nan
-
-
-def calibration_markdown(out: str) -> str:
-    """The robot's quota of each calibration recorded in `out`, with what it measured ("" if
-    none: the runs were at a given quota)."""
-    lines = []
-    for key in sorted(recorded_keys(out)):
-        saved = read_calibration(os.path.join(out, key, CALIBRATION_FILE))
-        if saved is not None:
-            quota, points = saved
-            measured = ", ".join(f"{p.quota:g} cores: {p.amcl_hz:.2f} Hz" for p in points)
-            lines.append(f"| {key} | {quota:g} | {measured} |")
-    if not lines:
-        return ""
-    return ("\n## The robot's quota for the day (--robot-cpu auto)\n\n"
-            "| calibration | robot quota, cores | AMCL at home, measured |\n|---|---|---|\n"
-            + "\n".join(lines) + "\n")
 
 
 def collect(runs: Sequence[PlannedRun], out: str, amcl_mbps: float) -> List[RunFigures]:
@@ -445,7 +361,7 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
     out = os.path.abspath(args.out)
     os.makedirs(out, exist_ok=True)
     todo = args.selected
-    quotas = QuotaForTheDay(args, run_testbed, out)
+    quotas = QuotaForTheDay(run_testbed, args.world, out, args.robot_cpu)
     print(f"evaluation: {len(todo)} runs on {args.world}; results in {out}", flush=True)
     try:
         for k, run in enumerate(todo, 1):
@@ -453,7 +369,7 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
             if latest_record(run_dir) is not None:
                 print(f"[{k}/{len(todo)}] {run.key}: recorded already, not run again", flush=True)
                 continue
-            robot_cpu = quotas.quota(run)
+            robot_cpu = quotas.quota(calibration_key(run))
             at = f", robot {robot_cpu:g} cores" if robot_cpu is not None else ""
             print(f"[{k}/{len(todo)}] {run.key}: {run.title}{at}, log {run_dir}/console.log",
                   flush=True)

@@ -126,6 +126,50 @@ def test_estimate_reports_the_heaviest_cluster():
     assert cov[0, 0] == pytest.approx(0.0025)
 
 
+def two_hypotheses(pf, lower_weight, upper_weight):
+    """The small loop's CI failure in miniature: two corridors 2.2 m apart that a scan fits
+    about equally."""
+    pf.particles = np.array([[6.3, 3.1, -0.2], [6.3, 3.2, -0.2], [6.4, 5.3, -0.2],
+                             [6.4, 5.4, -0.2]])
+    pf.weights = np.array([lower_weight, lower_weight, upper_weight, upper_weight])
+
+
+def test_the_estimate_stays_in_its_cluster_until_another_is_clearly_heavier():
+    pf = ParticleFilter(None, np.random.default_rng(0))
+    two_hypotheses(pf, 0.26, 0.24)
+    (_, y, _), _ = pf.estimate()
+    assert y == pytest.approx(3.15)                  # the heaviest at first
+    two_hypotheses(pf, 0.24, 0.26)                   # 8 % heavier up there: it stays
+    (_, y, _), _ = pf.estimate()
+    assert y == pytest.approx(3.15)
+    two_hypotheses(pf, 0.16, 0.34)                   # over twice as heavy: it moves
+    (_, y, _), _ = pf.estimate()
+    assert y == pytest.approx(5.35)
+
+
+def test_amcls_rule_and_a_new_initial_pose_take_the_heaviest_cluster():
+    amcl_rule = ParticleFilter(None, np.random.default_rng(0), hypothesis_switch_ratio=1.0)
+    two_hypotheses(amcl_rule, 0.26, 0.24)
+    amcl_rule.estimate()
+    two_hypotheses(amcl_rule, 0.24, 0.26)
+    assert amcl_rule.estimate()[0][1] == pytest.approx(5.35)
+    pf = ParticleFilter(None, np.random.default_rng(0))
+    two_hypotheses(pf, 0.26, 0.24)
+    pf.estimate()
+    pf.init_gaussian((6.4, 5.4, 0.0), 0.0, 0.0, 0.0)
+    two_hypotheses(pf, 0.24, 0.26)
+    assert pf.estimate()[0][1] == pytest.approx(5.35)
+
+
+def test_a_cluster_that_died_out_keeps_nothing():
+    pf = ParticleFilter(None, np.random.default_rng(0))
+    two_hypotheses(pf, 0.26, 0.24)
+    pf.estimate()
+    pf.particles = pf.particles + np.array([4.0, 0.0, 0.0])     # nothing near the estimate now
+    pf.weights = np.array([0.2, 0.2, 0.3, 0.3])
+    assert pf.estimate()[0][1] == pytest.approx(5.35)
+
+
 def test_tracks_the_office_corridor_with_20_cm_between_updates():
     """0.4 m/s with AMCL at 2 Hz: odometry 1 % long and curving 0.02 rad/m, 57 beams.
     (With amcl's default alphas of 0.2 the cloud diffused faster than the scans pulled it back

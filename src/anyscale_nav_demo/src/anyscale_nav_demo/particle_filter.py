@@ -172,7 +172,7 @@ class ParticleFilter:
     def __init__(self, field, rng=None, min_particles=500, max_particles=5000, kld_err=0.01,
                  kld_z=0.99, alphas=(0.05, 0.05, 0.05, 0.05), sigma_hit=0.2, z_hit=0.95,
                  z_rand=0.05, range_max=5.6, recovery_alpha_slow=0.0, recovery_alpha_fast=0.0,
-                 bin_size=(0.5, 0.5, math.radians(10))):
+                 bin_size=(0.5, 0.5, math.radians(10)), hypothesis_switch_ratio=2.0):
         self.field = field
         self.rng = rng or np.random.default_rng()
         self.min_particles, self.max_particles = min_particles, max_particles
@@ -185,6 +185,8 @@ class ParticleFilter:
         self.bin_size = np.asarray(bin_size)
         self.particles = np.zeros((0, 3))
         self.weights = np.zeros(0)
+        self.switch_ratio = hypothesis_switch_ratio
+        self.last_xy = None        # the last estimate's position; None after an initial pose
 
     def init_gaussian(self, mean, cov_xx, cov_yy, cov_aa):
         """Scatter max(min_particles, ...) particles around a pose (amcl's initial pose)."""
@@ -194,6 +196,7 @@ class ParticleFilter:
         self.particles[:, 2] = wrap_angle(self.particles[:, 2])
         self.weights = np.full(n, 1.0 / n)
         self.w_slow = self.w_fast = 0.0
+        self.last_xy = None
 
     def predict(self, odom_prev, odom_now):
         sample_motion_diff(self.particles, (odom_prev, odom_now), self.alphas, self.rng)
@@ -242,8 +245,11 @@ class ParticleFilter:
 
     def estimate(self):
         """Mean pose and 3x3 covariance of the heaviest particle cluster (as amcl reports it),
-        so that particles injected for recovery do not drag the estimate across the map."""
-        members = heaviest_cluster(self.particles[:, :2], self.weights, self.bin_size[0])
+        so that particles injected for recovery do not drag the estimate across the map; but
+        the cluster the last estimate was in stays the estimate until another weighs
+        switch_ratio times as much (estimated_cluster)."""
+        members = estimated_cluster(self.particles[:, :2], self.weights, self.bin_size[0],
+                                    self.last_xy, self.switch_ratio)
         p, w = self.particles[members], self.weights[members]
         w = w / w.sum() if w.sum() > 0 else np.full(len(w), 1.0 / len(w))
         x, y = np.dot(w, p[:, 0]), np.dot(w, p[:, 1])
@@ -251,13 +257,24 @@ class ParticleFilter:
         d = p - np.array([x, y, th])
         d[:, 2] = wrap_angle(d[:, 2])
         cov = (d * w[:, None]).T @ d
+        self.last_xy = (float(x), float(y))
         return (float(x), float(y), float(th)), cov
 
 
-def heaviest_cluster(xy, weights, cell):
-    """Mask of the particles in the 8-connected group of occupied cells with most weight."""
+def estimated_cluster(xy, weights, cell, last_xy=None, switch_ratio=1.0):
+    """Mask of the particles of the cluster (8-connected group of occupied cells) the estimate
+    is made from: the heaviest, unless the cluster nearest to the last estimate (last_xy) still
+    weighs at least 1 / switch_ratio of it.
+
+    Why not simply the heaviest, as amcl does: where a map repeats itself (the small loop's
+    corners), a scan fits two places about equally and the heaviest cluster can change with a
+    few percent of weight. In one CI run the estimate jumped 2.2 m with 0.02 m of odometry, the
+    cloud split 1262 / 1176 particles between two corridors whose weights differed by 3 %; the
+    EKF took the jump and navigation stood still against a wall it believed it was in. A
+    cluster that is really the better one soon weighs several times the other."""
     ij = np.floor(xy / cell).astype(np.int64)
-    ij -= ij.min(axis=0)
+    origin = ij.min(axis=0)
+    ij -= origin
     shape = tuple(ij.max(axis=0) + 1)
     occupied = np.zeros(shape, dtype=bool)
     occupied[ij[:, 0], ij[:, 1]] = True
@@ -265,5 +282,13 @@ def heaviest_cluster(xy, weights, cell):
     if n <= 1:
         return np.ones(len(xy), dtype=bool)
     lab = labels[ij[:, 0], ij[:, 1]]
-    best = np.argmax(np.bincount(lab, weights=weights, minlength=n + 1))
+    weight = np.bincount(lab, weights=weights, minlength=n + 1)
+    best = int(np.argmax(weight))
+    if last_xy is not None:
+        dist = np.hypot(xy[:, 0] - last_xy[0], xy[:, 1] - last_xy[1])
+        nearest = int(np.argmin(dist))
+        kept = int(lab[nearest])
+        # a cluster that has died out near the last estimate keeps nothing
+        if dist[nearest] <= 2 * cell and weight[kept] * switch_ratio >= weight[best]:
+            best = kept
     return lab == best

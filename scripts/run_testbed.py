@@ -16,4 +16,5 @@ except ImportError as e:
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 if __name__ == "__main__":
-    sys.exit(main(os.path.join(ROOT, "results", "testbed")))
+    sys.exit(main(os.path.join(ROOT, "results", "testbed"),
+                  run_testbed=os.path.abspath(__file__)))

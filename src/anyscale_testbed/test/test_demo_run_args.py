@@ -38,7 +38,7 @@ def test_normalise_cpu_is_off_unless_asked_for():
 
 
 def test_the_reference_comes_from_the_calibration_and_its_absence_is_one_line(tmp_path, capsys):
-    from anyscale_testbed.demo_run import calibrated_reference_ms
+    from anyscale_testbed.calibration_file import calibrated_reference_ms
     good = tmp_path / "good.yaml"
     good.write_text("reference_cpu_ms: 15.5\nrobot_cpu_cores: 0.34\n")
     assert calibrated_reference_ms(str(good)) == 15.5
@@ -53,7 +53,7 @@ def test_the_reference_comes_from_the_calibration_and_its_absence_is_one_line(tm
 
 def test_the_workspace_calibration_has_a_reference():
     import os
-    from anyscale_testbed.demo_run import calibrated_reference_ms
+    from anyscale_testbed.calibration_file import calibrated_reference_ms
     here = os.path.dirname(os.path.abspath(__file__))
     path = os.path.join(here, "..", "..", "anyscale_nav_demo", "config",
                         "testbed_calibration.yaml")
@@ -91,3 +91,28 @@ def test_help_prints_and_exits_0(capsys):
         parse_args(["--help"], "out")
     assert ended.value.code == 0
     assert "--record-inputs" in capsys.readouterr().out
+
+
+def test_robot_cpu_is_the_calibration_files_cores_or_auto(capsys):
+    default = parse_args([], "out")
+    assert default.robot_cpu is None and default.calibrate_robot_cpu is False
+    auto = parse_args(["--robot-cpu", "auto"], "out")
+    assert auto.robot_cpu is None and auto.calibrate_robot_cpu is True
+    # run_demo.sh passes auto first: a user's quota after it wins, without a calibration.
+    given = parse_args(["--robot-cpu", "auto", "--robot-cpu", "0.3"], "out")
+    assert given.robot_cpu == 0.3 and given.calibrate_robot_cpu is False
+    for bad, message in (("fast", "expected cores or auto, got 'fast'"),
+                         ("9", "expected 0.05 to 2 cores, got 9")):
+        with pytest.raises(SystemExit) as ended:
+            parse_args(["--robot-cpu", bad], "out")
+        assert ended.value.code == 2
+        assert message in capsys.readouterr().err
+
+
+def test_loops_are_one_unless_asked_for_and_bounded(capsys):
+    assert parse_args([], "out").loops == 1
+    assert parse_args(["--loops", "2"], "out").loops == 2
+    with pytest.raises(SystemExit) as ended:
+        parse_args(["--loops", "0"], "out")
+    assert ended.value.code == 2
+    assert "--loops: expected 1 to 100, got 0" in capsys.readouterr().err

@@ -133,7 +133,7 @@ def test_a_given_quota_is_passed_to_every_run_and_a_bad_one_refused(capsys):
 
 
 def test_amcl_moves_its_scans_and_its_pose_over_the_link():
-    from anyscale_testbed.demo_run import nav_demo_path
+    from anyscale_testbed.calibration_file import nav_demo_path
     assert amcl_bandwidth_mbps(nav_demo_path("config", "testbed.yaml")) == pytest.approx(0.22)
 
 

@@ -97,3 +97,24 @@ def test_a_run_is_off_the_premise_beyond_the_margin_either_way():
         assert premise_is_off(off)
     assert premise_off_note(3.04) == "premise off: AMCL 3.0 Hz at home"
     assert premise_off_note(1.2) == "premise off: AMCL 1.2 Hz at home"
+
+
+def test_the_end_table_states_the_premise_per_configuration_and_flags_a_robot_off_it():
+    from anyscale_testbed.testbed_figures import premise_lines
+    def run(home_period):
+        poses = ([30 + home_period * i for i in range(int(30 / home_period))]
+                 + [60 + 0.2 * i for i in range(200)])
+        return TestbedRecord(mappings=[(0.0, ROBOT, 0.0, 0.0), (60.0, LAPTOP, 0.0, 0.0)],
+                             receipts={"/amcl_pose": poses},
+                             truth=straight_line([((0, 60), 0.2), ((60, 100), 0.4)]),
+                             finished_t=100.0)
+    on = premise_lines(run(0.5))
+    assert len(on) == 3 and "premise: AMCL 2 Hz with every node on the robot" in on[0]
+    home = next(line for line in on if configuration_name(ROBOT) in line)
+    assert "AMCL 2.00 Hz" in home and "cruise 0.20 m/s" in home and "premise off" not in home
+    laptop = next(line for line in on if configuration_name(LAPTOP) in line)
+    assert "AMCL 5.00 Hz" in laptop and "cruise 0.40 m/s" in laptop
+    off = premise_lines(run(1 / 3))           # a host fast enough for AMCL at 3 Hz at home
+    assert "premise off: AMCL 3.0 Hz at home" in next(
+        line for line in off if configuration_name(ROBOT) in line)
+    assert premise_lines(TestbedRecord()) == []

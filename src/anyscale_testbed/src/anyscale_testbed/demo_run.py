@@ -19,12 +19,15 @@ import datetime
 import json
 import os
 import signal
-import subprocess
 import sys
 
 import yaml
 
+from anyscale_testbed.calibration_file import (calibrated_reference_ms, nav_demo_path,
+                                               quota_cores)
 from anyscale_testbed.host_speed import CpuNormaliser
+from anyscale_testbed.quota_calibration import CalibrationError
+from anyscale_testbed.quota_for_the_day import QuotaForTheDay, parse_robot_cpu
 from anyscale_testbed.testbed_figures import colour_violations
 from anyscale_testbed.testbed_record import store_cpu_normalisation
 from anyscale_testbed.testbed_session import (LoopbackBed, NamespaceBed, TestbedSession,
@@ -40,14 +43,6 @@ NORMALISE_SETTLE_S = 30.0
 # The end table marks a silence longer than its tolerance with the word VIOLATION; on a
 # terminal its line is red as well (the log file keeps the plain word). NO_COLOR turns it off.
 COLOUR = sys.stdout.isatty() and "NO_COLOR" not in os.environ
-
-
-def nav_demo_path(*parts) -> str:
-    out = subprocess.run(["rospack", "find", "anyscale_nav_demo"], capture_output=True,
-                         text=True)
-    if out.returncode != 0:
-        sys.exit("run_testbed: anyscale_nav_demo not found; source devel/setup.bash first")
-    return os.path.join(out.stdout.strip(), *parts)
 
 
 def world_start(world: str, start_goal=None):
@@ -71,36 +66,14 @@ def world_start(world: str, start_goal=None):
     return list(start), [list(g) for g in loop]
 
 
-def calibrated_cores(path: str):
-    """(robot, laptop) CPU quota in cores from the calibration file."""
+def world_goals(world: str):
+    """The world's own goal list (its last goal is its start)."""
+    path = nav_demo_path("maps", f"{world}_world.yaml")
     try:
         with open(path) as f:
-            calibration = yaml.safe_load(f) or {}
-        return float(calibration["robot_cpu_cores"]), float(calibration["laptop_cpu_cores"])
+            return [[float(v) for v in g] for g in yaml.safe_load(f)["goals"]]
     except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as e:
-        sys.exit(f"run_testbed: {path}: robot_cpu_cores / laptop_cpu_cores: {e}")
-
-
-def calibrated_reference_ms(path: str) -> float:
-    """The host-speed workload's CPU ms at which the calibration's quotas were right."""
-    try:
-        with open(path) as f:
-            reference = float((yaml.safe_load(f) or {})["reference_cpu_ms"])
-    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as e:
-        sys.exit(f"run_testbed: --normalise-cpu: {path}: reference_cpu_ms: {e}")
-    if not reference > 0:
-        sys.exit(f"run_testbed: --normalise-cpu: {path}: reference_cpu_ms must be positive, "
-                 f"got {reference:g}")
-    return reference
-
-
-def quota_cores(robot_cpu, laptop_cpu):
-    """(robot, laptop) CPU quota in cores: those given, the calibration file's for a None."""
-    if robot_cpu is None or laptop_cpu is None:
-        calibrated = calibrated_cores(nav_demo_path("config", "testbed_calibration.yaml"))
-        robot_cpu = calibrated[0] if robot_cpu is None else robot_cpu
-        laptop_cpu = calibrated[1] if laptop_cpu is None else laptop_cpu
-    return robot_cpu, laptop_cpu
+        sys.exit(f"run_testbed: --world {world}: cannot read the goals from {path}: {e}")
 
 
 def parse_args(argv, default_out: str):
@@ -118,10 +91,19 @@ def parse_args(argv, default_out: str):
     p.add_argument("--start-goal", type=int, default=None, metavar="K",
                    help="start at goal K of the world's goal list (0 = the first) and do the "
                         "loop from there, round to goal K (default: the world's start)")
+    p.add_argument("--loops", type=int, default=1, metavar="N",
+                   help="drive the loop N times (default 1); the run ends when the last is done "
+                        "or after --duration")
     p.add_argument("--duration", type=float, default=0.0,
                    help="end after this many seconds (default: when the loop is done)")
-    p.add_argument("--robot-cpu", type=float, default=None, metavar="CORES",
-                   help="robot CPU quota (default: the calibration file's)")
+    p.add_argument("--robot-cpu", default=None, metavar="CORES|auto",
+                   help="robot CPU quota (default: the calibration file's). auto (what "
+                        "scripts/run_demo.sh passes): before the run, 1-3 short runs with every "
+                        "node home and the link down (about 105 s each) find the quota at which "
+                        "AMCL runs the premise's 2 Hz at this moment, as the paper's robot did; "
+                        "this host's speed drifts, so a fixed quota held the premise only on the "
+                        "day it was measured. The run then uses it; it is printed, so that a "
+                        "next run can be given it")
     p.add_argument("--laptop-cpu", type=float, default=None, metavar="CORES",
                    help="laptop CPU quota (default: the calibration file's)")
     p.add_argument("--normalise-cpu", action="store_true",
@@ -168,6 +150,13 @@ def parse_args(argv, default_out: str):
         p.error(f"--schedule: expected [[t_s, Mbit/s], ...], got {args.schedule!r}")
     if args.seed < 0:
         p.error(f"--seed: expected an integer >= 0, got {args.seed}")
+    args.calibrate_robot_cpu = args.robot_cpu == "auto"
+    try:
+        args.robot_cpu = parse_robot_cpu(args.robot_cpu) if args.robot_cpu else None
+    except ValueError as e:
+        p.error(str(e))
+    if not 1 <= args.loops <= 100:
+        p.error(f"--loops: expected 1 to 100, got {args.loops}")
     if not 1 <= args.cfs_period_ms <= 1000:
         p.error(f"--cfs-period-ms: expected 1 to 1000 ms (the kernel's limits), got {args.cfs_period_ms:g}")
     if args.seed and args.link != "coverage":
@@ -179,14 +168,17 @@ def parse_args(argv, default_out: str):
     return args
 
 
-def main(default_out: str, argv=None) -> int:
-    """One run; `default_out` is where --out defaults to (the caller's results/testbed)."""
+def main(default_out: str, argv=None, run_testbed: str = "") -> int:
+    """One run; `default_out` is where --out defaults to (the caller's results/testbed),
+    `run_testbed` the script that runs this (--robot-cpu auto runs it for its calibration)."""
     args = parse_args(argv, default_out)
     model = args.model or nav_demo_path("config", "testbed.yaml")
     robot_cpu, laptop_cpu = quota_cores(args.robot_cpu, args.laptop_cpu)
     reference_ms = (calibrated_reference_ms(nav_demo_path("config", "testbed_calibration.yaml"))
                     if args.normalise_cpu else None)
     (x, y, yaw), goals = world_start(args.world, args.start_goal)
+    if args.loops > 1:
+        goals = (goals or world_goals(args.world)) * args.loops
 
     missing = [] if args.loopback else missing_capabilities()
     loopback = args.loopback or bool(missing)
@@ -205,6 +197,16 @@ def main(default_out: str, argv=None) -> int:
     run_dir = os.path.abspath(os.path.join(args.out,
                                            f"{args.world}{start}-{link}{seed}-{stamp}"))
     record = os.path.join(run_dir, "record.json")
+    # Ctrl-C and a plain kill both end in the teardown of the bed (or of a calibration run's).
+    signal.signal(signal.SIGTERM, raise_interrupt)
+    if args.calibrate_robot_cpu and loopback:
+        print(PREFIX + "--robot-cpu auto: no CPU quotas on loopback, nothing to calibrate")
+    elif args.calibrate_robot_cpu:
+        try:
+            robot_cpu = quota_for_this_moment(run_testbed, args, run_dir)
+        except (CalibrationError, KeyboardInterrupt) as e:
+            print(PREFIX + f"--robot-cpu auto: {e or 'interrupted'}; no run")
+            return 1 if isinstance(e, CalibrationError) else 130
     bed = LoopbackBed() if loopback else NamespaceBed(layout_with_cpu(robot_cpu, laptop_cpu),
                                                       cfs_period_us=int(args.cfs_period_ms * 1000))
     normaliser = None
@@ -221,8 +223,6 @@ def main(default_out: str, argv=None) -> int:
              "normalised every 5 s" if normaliser else "")
           + f"; logs and results in {run_dir}")
 
-    # Ctrl-C and a plain kill both end in the teardown below.
-    signal.signal(signal.SIGTERM, raise_interrupt)
     try:
         with bed, (normaliser or contextlib.nullcontext()):
             if normaliser:
@@ -248,6 +248,18 @@ def main(default_out: str, argv=None) -> int:
                 print(PREFIX + f"the quotas' history is not in the record: {e}")
         if os.path.exists(record):
             print(PREFIX + f"record: {record}")
+
+
+def quota_for_this_moment(run_testbed: str, args, run_dir: str) -> float:
+    """--robot-cpu auto: the robot's quota at which AMCL runs the premise's rate with every node
+    home, found by short runs kept in run_dir/calibration/ (quota_for_the_day.py)."""
+    print(PREFIX + "--robot-cpu auto: finding the robot's CPU quota at which AMCL runs its "
+          "2 Hz minimum with every node home (the paper's premise), by 1-3 runs of about "
+          "105 s with the link down; --robot-cpu CORES skips this", flush=True)
+    quotas = QuotaForTheDay(run_testbed, args.world, run_dir,
+                            extra_argv=["--cfs-period-ms", f"{args.cfs_period_ms:g}"],
+                            log=lambda line: print(PREFIX + line, flush=True))
+    return quotas.quota("calibration")
 
 
 def normaliser_state(normaliser: CpuNormaliser) -> str:

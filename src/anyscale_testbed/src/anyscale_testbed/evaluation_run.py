@@ -42,7 +42,7 @@ from anyscale_core.model_loader import load_model
 from anyscale_nav_demo.occupancy_map import MapError, load_map
 
 from .bench_runs import latest_record, run_logged, start_on_the_testbed
-from .demo_run import nav_demo_path
+from .calibration_file import nav_demo_path
 from .evaluation_figures import (RunFigures, configurations_along_path, run_figures,
                                  truth_in_window)
 from .evaluation_plots import draw_fig5, draw_fig6

@@ -66,6 +66,8 @@ def premise_figures(rec: TestbedRecord, skip_s: float) -> List[dict]:
     move's own seconds say nothing of the configuration)."""
     end = rec.finished_t if rec.finished_t is not None else max(
         [t for t, _, _ in rec.truth] or [0.0])
+    if end <= skip_s:
+        return []
     truth = np.array(rec.truth, dtype=float).reshape(-1, 3)
     poses = np.array(rec.receipts.get("/amcl_pose", []), dtype=float)
     sums: Dict[str, dict] = {}

@@ -7,12 +7,12 @@ import json
 import math
 import os
 import sys
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 from .bench_runs import latest_record, run_logged
-from .demo_run import quota_cores
+from .calibration_file import quota_cores
 from .premise_figures import START_UP_S, figures_with_every_node_home
-from .quota_calibration import QuotaPoint, calibrate_quota
+from .quota_calibration import MAX_RUNS, QuotaPoint, calibrate_quota
 
 CALIBRATION_FILE = "calibration.json"
 # A calibration run: START_UP_S of start-up, then this long of AMCL's rate with every node home
@@ -60,8 +60,13 @@ class QuotaForTheDay:
     """The robot's quota of each run: `fixed` if given; else each calibration (a key, its
     directory under `out`) measured once, before its first run, and kept."""
 
-    def __init__(self, run_testbed: str, world: str, out: str, fixed: Optional[float] = None):
+    def __init__(self, run_testbed: str, world: str, out: str, fixed: Optional[float] = None,
+                 extra_argv: Sequence[str] = (), log: Callable[[str], None] = None):
+        """extra_argv: more run_testbed.py options for the calibration runs; log: where the
+        progress lines go."""
         self.run_testbed, self.world, self.out, self.fixed = run_testbed, world, out, fixed
+        self.extra_argv = list(extra_argv)
+        self.log = log or (lambda line: print(line, flush=True))
         self.quotas: Dict[str, float] = {}
         self.start: Optional[float] = None    # the calibration file's, for the first one
 
@@ -79,20 +84,23 @@ class QuotaForTheDay:
                 runs = iter(range(1, 100))
                 quota, points = calibrate_quota(
                     self.start, lambda q: self._home_rate(q, cal_dir, next(runs)),
-                    log=lambda line: print(f"  {key}: {line}", flush=True))
+                    log=lambda line: self.log(f"  {key}: {line}"))
                 write_calibration(os.path.join(cal_dir, CALIBRATION_FILE), quota, points)
             else:
                 quota = saved[0]
-                print(f"  {key}: robot {quota:g} cores, calibrated already", flush=True)
+                self.log(f"  {key}: robot {quota:g} cores, calibrated already")
             self.quotas[key] = self.start = quota   # the next calibration starts from here
         return self.quotas[key]
 
     def _home_rate(self, quota: float, cal_dir: str, k: int) -> float:
         """AMCL's rate with every node home after START_UP_S, in a short run."""
         run_dir = os.path.join(cal_dir, f"run{k}")
+        duration = START_UP_S + CALIBRATION_MEASURE_S
         argv = [sys.executable, self.run_testbed, "--world", self.world, "--duration",
-                f"{START_UP_S + CALIBRATION_MEASURE_S:g}", "--robot-cpu", f"{quota:g}",
-                "--out", run_dir] + EVERY_NODE_HOME_LINK
+                f"{duration:g}", "--robot-cpu", f"{quota:g}",
+                "--out", run_dir] + EVERY_NODE_HOME_LINK + self.extra_argv
+        self.log(f"  calibration run {k} (at most {MAX_RUNS}): robot {quota:g} cores, every "
+                 f"node home, {duration:g} s; log {run_dir}/console.log")
         run_logged(argv, run_dir)
         rec = latest_record(run_dir)
         row = figures_with_every_node_home(rec, START_UP_S) if rec is not None else None

@@ -28,7 +28,8 @@ from anyscale_core.model_loader import load_model
 
 from . import fault_schedule as fs
 from .bench_runs import interrupt_then_kill, start_on_the_testbed
-from .demo_run import launch_demo, nav_demo_path, quota_cores, world_start
+from .calibration_file import nav_demo_path, quota_cores
+from .demo_run import launch_demo, world_start
 from .demo_run import parse_args as demo_args
 from .link_shaper import apply_setting
 from .proc_census import processes_with_master

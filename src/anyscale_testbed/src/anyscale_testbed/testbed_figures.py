@@ -9,6 +9,8 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from .premise_figures import (EVERY_NODE_HOME, PREMISE_AMCL_HZ, START_UP_S, premise_figures,
+                              premise_off_note)
 from .testbed_record import EventRecord, ProcessSample, TestbedRecord, Violation
 
 
@@ -294,6 +296,7 @@ def format_summary(rec: TestbedRecord, outputs: Dict[str, str],
     if errors.size:
         lines.append(f"AMCL position error vs ground truth: RMS {np.sqrt(np.mean(errors**2)):.3f}"
                      f" m, max {errors.max():.3f} m over {errors.size} poses")
+    lines += premise_lines(rec)
     if rec.bandwidth:
         up = np.array([b > 0 for _, b in rec.bandwidth])
         lines.append(f"link: up {100 * up.mean():.0f} % of the samples, "
@@ -303,6 +306,23 @@ def format_summary(rec: TestbedRecord, outputs: Dict[str, str],
         lines.append(f"Perf of the last mapping (Eq. 1): {perf:.1f}; objective so far "
                      f"(Eq. 2): {objective:.0f}")
     return "\n".join(lines)
+
+
+def premise_lines(rec: TestbedRecord) -> List[str]:
+    """Where AMCL and AR ran, and what AMCL's rate and the robot's speed were there: the test
+    bed's premise is AMCL at its 2 Hz minimum (0.2 m/s) with every node on the robot, and the
+    robot at 0.4 m/s with AMCL on the laptop."""
+    rows = premise_figures(rec, START_UP_S) if rec.mappings else []
+    if not rows:
+        return []
+    lines = [f"per configuration, after {START_UP_S:g} s of start-up (premise: AMCL "
+             f"{PREMISE_AMCL_HZ:g} Hz with every node on the robot):"]
+    for r in rows:
+        off = premise_off_note(r["amcl_hz"]) if r["configuration"] == EVERY_NODE_HOME else ""
+        lines.append(f"  {r['configuration']:<26} {r['seconds']:5.0f} s  AMCL "
+                     f"{r['amcl_hz']:.2f} Hz (longest gap {r['amcl_longest_gap_s']:.2f} s)  "
+                     f"cruise {r['cruise_speed']:.2f} m/s" + (f"  {off}" if off else ""))
+    return lines
 
 
 def _seconds(v: float) -> str:

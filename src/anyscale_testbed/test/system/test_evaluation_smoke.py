@@ -12,7 +12,7 @@ import sys
 
 import pytest
 
-from anyscale_testbed.demo_run import quota_cores
+from anyscale_testbed.calibration_file import quota_cores
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "..", ".."))
 DURATION_S = 30.0

@@ -37,7 +37,9 @@ ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "..",
 # robot.launch's weak_link_mbps (5.5) brings AMCL home from a link on 802.11's two lowest rates
 # (3 and 4.5 Mbit/s usable). The moves out after T come at about 63 s: the loop has taken
 # 71-83 s with AMCL on the laptop this long (at 66 s for the link's return, a loop done at
-# 71 s left them out of the run). The hold after a loss (robot.launch: 20 s, see
+# 71 s left them out of the run; a clean-clone CI's loop was done at 70 s, 1 s into the moves
+# out after T, so the robot drives the loop twice and the run ends at DURATION_S). The hold
+# after a loss (robot.launch: 20 s, see
 # test_long_outage.py) is off here: (4) is about T.
 SCHEDULE = "[[0, 27], [40, 6], [52, 0], [57, 27]]"
 HYSTERESIS_S = 10.0
@@ -54,8 +56,8 @@ def run(tmp_path_factory):
     done = subprocess.run(
         [sys.executable, os.path.join(ROOT, "scripts", "run_testbed.py"), "--world",
          "small_loop", "--link", "schedule", "--schedule", SCHEDULE, "--duration",
-         str(DURATION_S), "--hysteresis", str(HYSTERESIS_S), "--robot-cpu", str(ROBOT_CPU_CORES),
-         "--hold-after-loss", "0", "--out", str(out)],
+         str(DURATION_S), "--loops", "2", "--hysteresis", str(HYSTERESIS_S),
+         "--robot-cpu", str(ROBOT_CPU_CORES), "--hold-after-loss", "0", "--out", str(out)],
         capture_output=True, text=True, timeout=DURATION_S + 120)
     records = glob.glob(str(out / "*" / "record.json"))
     assert done.returncode == 0 and records, done.stdout[-3000:] + done.stderr[-3000:]
@@ -181,10 +183,6 @@ def test_3_amcl_publishes_on_the_robot_within_its_tolerance_of_the_loss(run, pha
     assert reaction < AMCL_POSE_TOLERANCE_S, f"/amcl_pose on the robot {reaction:.2f} s after the loss"
 
 
-@pytest.mark.xfail(reason="met in every run since the pause (2 of 2), but this takes the "
-                          "longest silence of the whole run, the robot's own included: alone at "
-                          "its quota AMCL is silent up to 1.5 s (office-floor baselines)",
-                   strict=False)
 def test_3_amcl_pose_on_the_robot_never_silent_longer_than_its_tolerance(run):
     poses = run.receipts["/amcl_pose"]
     gap = longest_gap(poses, poses[0], run.finished_t)
@@ -229,7 +227,9 @@ def test_5_never_two_instances_where_both_could_publish(run, phases):
     # After the partition healed: never two outside an overlap, one of each at the end.
     healed = [s for s in run.processes if s.t > up_at]
     assert healed and duplicate_instances(healed, MIGRATABLE, run.events) == []
-    assert all(len(healed[-1].instances[n]) == 1 for n in MIGRATABLE)
+    settled = [s for s in healed
+               if not any(a <= s.t <= b for ws in windows.values() for a, b in ws)]
+    assert settled and all(len(settled[-1].instances[n]) == 1 for n in MIGRATABLE), settled[-1:]
 
 
 def test_6_critical_nodes_never_move(run):

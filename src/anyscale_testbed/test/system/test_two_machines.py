@@ -15,7 +15,7 @@ import pytest
 from anyscale_core.model_loader import load_model
 from anyscale_core.polling import wait_for
 
-from anyscale_testbed.demo_run import calibrated_cores, nav_demo_path
+from anyscale_testbed.calibration_file import calibrated_cores, nav_demo_path
 from anyscale_testbed.testbed_monitor_ros import node_processes
 from anyscale_testbed.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
 

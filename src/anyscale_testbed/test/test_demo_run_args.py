@@ -116,3 +116,31 @@ def test_loops_are_one_unless_asked_for_and_bounded(capsys):
         parse_args(["--loops", "0"], "out")
     assert ended.value.code == 2
     assert "--loops: expected 1 to 100, got 0" in capsys.readouterr().err
+
+
+def test_robot_cpu_auto_runs_the_calibration_with_the_runs_own_options(tmp_path, monkeypatch,
+                                                                       capsys):
+    import os
+    from anyscale_testbed import demo_run, quota_for_the_day
+    from test_evaluation_table import on, record
+    argvs = []
+
+    def fake_run(argv, out_dir):
+        """A host on which AMCL runs 2 Hz at home at 0.25 cores and 3.4 Hz at 0.34."""
+        argvs.append(argv)
+        quota = float(argv[argv.index("--robot-cpu") + 1])
+        rec = record(mappings=[(0.0, on(), 0.0, 0.0)], amcl_hz=2.0 + (quota - 0.25) / 0.09 * 1.4)
+        os.makedirs(os.path.join(out_dir, "office_floor-fake"))
+        rec.save(os.path.join(out_dir, "office_floor-fake", "record.json"))
+        return 0
+    monkeypatch.setattr(quota_for_the_day, "run_logged", fake_run)
+    monkeypatch.setattr(quota_for_the_day, "quota_cores", lambda robot, laptop: (0.34, 0.9))
+    args = parse_args(["--robot-cpu", "auto", "--cfs-period-ms", "50"], "out")
+    quota = demo_run.quota_for_this_moment("run_testbed.py", args, str(tmp_path))
+    assert 0.23 < quota < 0.27
+    assert len(argvs) == 2 and all(a[a.index("--cfs-period-ms") + 1] == "50" for a in argvs)
+    assert all(a[a.index("--schedule") + 1] == "[[0, 0]]" for a in argvs)   # every node home
+    printed = capsys.readouterr().out.splitlines()
+    assert all(line.startswith(demo_run.PREFIX) for line in printed)
+    assert any("calibration run 2 (at most 3)" in line for line in printed)
+    assert (tmp_path / "robot_quota" / "calibration.json").exists()

@@ -252,14 +252,14 @@ def main(default_out: str, argv=None, run_testbed: str = "") -> int:
 
 def quota_for_this_moment(run_testbed: str, args, run_dir: str) -> float:
     """--robot-cpu auto: the robot's quota at which AMCL runs the premise's rate with every node
-    home, found by short runs kept in run_dir/calibration/ (quota_for_the_day.py)."""
+    home, found by short runs kept in run_dir/robot_quota/ (quota_for_the_day.py)."""
     print(PREFIX + "--robot-cpu auto: finding the robot's CPU quota at which AMCL runs its "
           "2 Hz minimum with every node home (the paper's premise), by 1-3 runs of about "
           "105 s with the link down; --robot-cpu CORES skips this", flush=True)
     quotas = QuotaForTheDay(run_testbed, args.world, run_dir,
                             extra_argv=["--cfs-period-ms", f"{args.cfs_period_ms:g}"],
                             log=lambda line: print(PREFIX + line, flush=True))
-    return quotas.quota("calibration")
+    return quotas.quota("robot_quota")
 
 
 def normaliser_state(normaliser: CpuNormaliser) -> str:

@@ -207,3 +207,32 @@ def test_the_inputs_survive_a_round_trip_and_old_records_load_without_them(tmp_p
     with open(path, "w") as f:
         json.dump(d, f)
     assert TestbedRecord.load(path).inputs == []
+
+
+def start(node, done_t):
+    return EventRecord(t=done_t, kind="start", node=node, from_scale="", to_scale="robot",
+                       reason="initial configuration", duration_s=done_t - 5.0, success=True,
+                       decided_t=5.0)
+
+
+def test_an_output_is_judged_once_the_subscribers_of_its_connection_run():
+    """Tolerance bench, run 1: AR published from t=16 s, navigation (its only subscriber) ran
+    from 25.9 s, and /ar_markers was silent 1.1 s at 17 s while the node set came up."""
+    markers = ticks(16.0, 17.0, 0.2) + ticks(18.1, 30.0, 0.2) + ticks(31.5, 40.0, 0.2)
+    rec = TestbedRecord(events=[start("ar_recognition", 6.9), start("navigation", 25.9)],
+                        finished_t=40.0, receipts={"/ar_markers": markers},
+                        outputs={"ar_recognition": "/ar_markers"},
+                        tolerances={"/ar_markers": 1.0},
+                        subscribers={"/ar_markers": ["navigation"]})
+    found = tolerance_violations(rec)
+    assert [(round(v.start_t, 1), round(v.silence_s, 1)) for v in found] == [(29.9, 1.6)]
+    text = format_summary(rec, rec.outputs, rec.tolerances)
+    assert "/ar_markers: longest silence 1.60 s (tolerance 1 s) once its subscribers ran" in text
+    # A record without the subscribers (older) is judged from the first message, as before; so
+    # is one whose subscriber AnyScale never started (the static pipeline).
+    for older in (dict(subscribers={}), dict(events=[start("ar_recognition", 6.9)])):
+        rec_old = TestbedRecord(**{**dict(events=rec.events, finished_t=40.0,
+                                          receipts=rec.receipts, outputs=rec.outputs,
+                                          tolerances=rec.tolerances,
+                                          subscribers=rec.subscribers), **older})
+        assert [round(v.start_t, 1) for v in tolerance_violations(rec_old)] == [17.0, 29.9]

@@ -109,6 +109,7 @@ class TestbedMonitor:
             if c.publisher in movable and c.tolerance > 0:
                 self.outputs.setdefault(c.publisher, c.topic)
                 self.tolerances[c.topic] = max(self.tolerances.get(c.topic, 0.0), c.tolerance)
+                self.rec.subscribers.setdefault(c.topic, []).append(c.subscriber)
         # In the record too: its violations can be read, and recomputed, without the model.
         self.rec.outputs, self.rec.tolerances = dict(self.outputs), dict(self.tolerances)
         # The critical connections' topics as well, on request (the fault soak checks that they

@@ -61,6 +61,10 @@ class TestbedRecord:
     finished_t: Optional[float] = None
     outputs: Dict[str, str] = field(default_factory=dict)         # node -> its output topic
     tolerances: Dict[str, float] = field(default_factory=dict)    # output topic -> Δ in s
+    # output topic -> the subscriber nodes of its judged connections: a connection exists, and
+    # its silences count, once its subscribers have started (testbed_figures.judged_from).
+    # Empty in older records: their outputs are judged from the first message on.
+    subscribers: Dict[str, List[str]] = field(default_factory=dict)
     # The topics of critical connections (Δ 0) -> the highest freq_min among them, when the
     # monitor records their receipts too (~record_critical, the fault soak); else empty.
     critical_freq_min: Dict[str, float] = field(default_factory=dict)

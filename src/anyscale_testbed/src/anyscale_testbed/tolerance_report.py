@@ -9,7 +9,7 @@ import math
 import statistics
 from typing import Dict, List, Optional, Sequence
 
-from .testbed_figures import longest_gap
+from .testbed_figures import judged_receipts, longest_gap
 from .testbed_record import TestbedRecord, Violation
 
 
@@ -56,8 +56,8 @@ def run_row(run: int, start_goal: int, exit_code: int,
     row.restarts = sum(e.kind == "restart" for e in rec.events)
     row.tolerances = dict(rec.tolerances)
     for topic in rec.tolerances:
-        times = rec.receipts.get(topic, [])
-        # Like the end table: from the first message on; a topic that never spoke has none.
+        times = judged_receipts(rec, topic)
+        # Like the end table: from its connections' first message; one that never spoke has none.
         row.longest_s[topic] = longest_gap(times, times[0], end) if times else math.nan
     row.violations = list(rec.violations)
     row.home_hz = {t: rate_all_on_one_scale(rec, t, end) for t in rec.tolerances}

@@ -144,3 +144,14 @@ def test_robot_cpu_auto_runs_the_calibration_with_the_runs_own_options(tmp_path,
     assert all(line.startswith(demo_run.PREFIX) for line in printed)
     assert any("calibration run 2 (at most 3)" in line for line in printed)
     assert (tmp_path / "robot_quota" / "calibration.json").exists()
+
+
+def test_loops_repeat_the_loop_from_where_the_robot_starts():
+    from anyscale_testbed.demo_run import world_start
+    start, goals = world_start("small_loop")
+    assert goals is None                      # navigation reads the world's own goals
+    start2, twice = world_start("small_loop", None, 2)
+    assert start2 == start and len(twice) % 2 == 0 and twice[:len(twice) // 2] == twice[len(twice) // 2:]
+    assert twice[-1][:3] == start             # the world's last goal is its start
+    at1, loop = world_start("small_loop", 1, 3)
+    assert len(loop) == 3 * (len(twice) // 2) and loop[-1][:3] == at1

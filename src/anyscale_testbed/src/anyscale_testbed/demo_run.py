@@ -45,35 +45,26 @@ NORMALISE_SETTLE_S = 30.0
 COLOUR = sys.stdout.isatty() and "NO_COLOR" not in os.environ
 
 
-def world_start(world: str, start_goal=None):
+def world_start(world: str, start_goal=None, loops: int = 1):
     """(x, y, yaw) where the robot starts, and navigation's goals: the world's start and None
     (navigation reads the world's goals itself), or with `start_goal` K, goal K's pose and the
-    loop from there."""
+    loop from there; with `loops` > 1 the goals repeated that many times."""
     path = nav_demo_path("maps", f"{world}_world.yaml")
     try:
         with open(path) as f:
             world_file = yaml.safe_load(f)
-        if start_goal is None:
-            return [float(v) for v in world_file["start"]], None
+        start = [float(v) for v in world_file["start"]]
         goals = [[float(v) for v in g] for g in world_file["goals"]]
     except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as e:
         sys.exit(f"run_testbed: --world {world}: cannot read the start pose and goals from "
                  f"{path}: {e}")
+    if start_goal is None:
+        return start, (goals * loops if loops > 1 else None)
     try:
         start, loop = loop_from_goal(goals, start_goal)
     except ValueError as e:
         sys.exit(f"run_testbed: --start-goal: {world}'s {e}")
-    return list(start), [list(g) for g in loop]
-
-
-def world_goals(world: str):
-    """The world's own goal list (its last goal is its start)."""
-    path = nav_demo_path("maps", f"{world}_world.yaml")
-    try:
-        with open(path) as f:
-            return [[float(v) for v in g] for g in yaml.safe_load(f)["goals"]]
-    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as e:
-        sys.exit(f"run_testbed: --world {world}: cannot read the goals from {path}: {e}")
+    return list(start), [list(g) for g in loop] * loops
 
 
 def parse_args(argv, default_out: str):
@@ -176,9 +167,7 @@ def main(default_out: str, argv=None, run_testbed: str = "") -> int:
     robot_cpu, laptop_cpu = quota_cores(args.robot_cpu, args.laptop_cpu)
     reference_ms = (calibrated_reference_ms(nav_demo_path("config", "testbed_calibration.yaml"))
                     if args.normalise_cpu else None)
-    (x, y, yaw), goals = world_start(args.world, args.start_goal)
-    if args.loops > 1:
-        goals = (goals or world_goals(args.world)) * args.loops
+    (x, y, yaw), goals = world_start(args.world, args.start_goal, args.loops)
 
     missing = [] if args.loopback else missing_capabilities()
     loopback = args.loopback or bool(missing)

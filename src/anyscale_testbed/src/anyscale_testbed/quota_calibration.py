@@ -7,10 +7,12 @@ fixed quota (every node home at 0.34 cores: 2.39 Hz one morning, 3.27 Hz two day
 3.18 Hz over a week), so a quota written into testbed_calibration.yaml holds the premise only on
 the day it was measured. A baseline off the premise makes every gain meaningless.
 
-The first step assumes AMCL's rate grows in proportion to the CPU left over by the robot's
-other nodes, quota - PRIOR_OTHER_CORES (three quotas measured on one day, 0.30-0.37 cores, lay
-on such a line); every later step is the secant through the last two measurements, which needs
-no assumption.
+Each step assumes AMCL's rate grows in proportion to the CPU left over by the robot's other
+nodes, rate = k x (quota - PRIOR_OTHER_CORES) (three quotas measured on one day, 0.30-0.37
+cores, lay on such a line), with k fitted by least squares to every measurement so far. Not the
+secant through the last two: one 75 s measurement varies by about +-0.3 Hz, and on 2026-11-27
+0.254 cores read 2.25 Hz and 0.239 cores 2.32 Hz, so the secant had no usable slope, and the
+next reading (0.223 cores: 1.53 Hz) was as noisy again; the fit averages the noise out.
 """
 from dataclasses import dataclass
 import math
@@ -35,17 +37,12 @@ class QuotaPoint:
 
 
 def next_quota(points: Sequence[QuotaPoint], target_hz: float = PREMISE_AMCL_HZ) -> float:
-    """The quota to try after `points` (in the order measured), within QUOTA_BOUNDS."""
-    last = points[-1]
-    quota = math.nan
-    if len(points) >= 2:
-        before = points[-2]
-        if last.quota != before.quota:
-            slope = (last.amcl_hz - before.amcl_hz) / (last.quota - before.quota)
-            if slope > 0:       # noise can make two close quotas read the wrong way round
-                quota = last.quota + (target_hz - last.amcl_hz) / slope
-    if math.isnan(quota):
-        quota = PRIOR_OTHER_CORES + (last.quota - PRIOR_OTHER_CORES) * target_hz / last.amcl_hz
+    """The quota at which rate = k x (quota - PRIOR_OTHER_CORES), k fitted to `points` by least
+    squares, gives target_hz; within QUOTA_BOUNDS."""
+    spare = [p.quota - PRIOR_OTHER_CORES for p in points]
+    k = (sum(x * p.amcl_hz for x, p in zip(spare, points))
+         / max(sum(x * x for x in spare), 1e-9))
+    quota = PRIOR_OTHER_CORES + target_hz / k if k > 0 else QUOTA_BOUNDS[1]
     return round(min(max(quota, QUOTA_BOUNDS[0]), QUOTA_BOUNDS[1]), 3)
 
 

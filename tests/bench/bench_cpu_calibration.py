@@ -281,6 +281,9 @@ def main():
     ap.add_argument("--amcl-beams", type=int, help="laser_max_beams")
     ap.add_argument("--ar-detector-params", help="JSON dict for ar_recognition's ~detector_params")
     ap.add_argument("--verbose", action="store_true", help="show the nodes' output")
+    ap.add_argument("--json", metavar="FILE", default=None,
+                    help="also write every step's figures there ({robot: [...], laptop: [...]}, "
+                         "CPU in %% of one core), e.g. for bench_profile.py's side-by-side run")
     args = ap.parse_args()
 
     cal = {}
@@ -337,6 +340,9 @@ def main():
 
     reference_cpu_ms = cal.get("reference_cpu_ms", "not set")
     print_report(args, psutil.cpu_count(), time.time() - t_start, reference_cpu_ms, results_r, results_l)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({"robot": results_r, "laptop": results_l}, f, allow_nan=True)
     return 0
 
 

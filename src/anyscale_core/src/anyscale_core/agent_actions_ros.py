@@ -101,6 +101,15 @@ class AgentActions:
             self.node_workers[node].submit(lambda: assigned() != source and
                                            self._stop(node, source, pause=stop.pause))
             return
+        if not self.link_up.get(source, True):
+            # The old instance is out of reach: going back to it would leave the node running
+            # nowhere that can be reached (in a tolerance bench run AR's robot instance, which
+            # published all along unseen, was stopped 20 s after its return, and the link-loss
+            # return that followed left /ar_markers silent 1.51 s).
+            rospy.logwarn("anyscale decision: %s on %s: no output seen within %.1f s, but %s is "
+                          "out of reach; it stays on %s", node, target,
+                          self.params.handover_timeout_s, source, target)
+            return
         rospy.logwarn("anyscale decision: %s on %s did not publish within %.1f s; it stays on %s",
                       node, target, self.params.handover_timeout_s, source)
         self._stop(node, target)
@@ -251,6 +260,10 @@ class AgentActions:
         """Removes the master's registrations of this system's node instances that are gone
         (see ghost_registrations), except where a node runs or is being handed over, and
         paused instances (launch.pause_at_home), which are registered but do not answer."""
+        names = self._ghost_candidates()
+        self.registrations.submit(lambda: self._purge(names), key="purge")
+
+    def _ghost_candidates(self):
         with self.lock:
             mapping = self.engine.mapping()
             busy = set(self.handing_over)
@@ -258,13 +271,19 @@ class AgentActions:
             paused = pauses_under_way(self.pausing, received) | {
                 p.instance for status in self.statuses.values() for p in status.nodes
                 if p.state == p.PAUSED}
-        names = ghost_candidates(self.model, mapping, busy, paused)
-        self.registrations.submit(lambda: self._purge(names), key="purge")
+        return ghost_candidates(self.model, mapping, busy, paused)
 
     def _purge(self, names):
         master = rosgraph.Master(self.caller_id)
         try:
             dead = dead_registrations(master, names, self.caller_id, GHOST_PING_TIMEOUT_S)
+            # Each ping may wait GHOST_PING_TIMEOUT_S: an instance whose pause began meanwhile
+            # (a handover that had just ended) does not answer either, and is no ghost. Purged,
+            # it ran on unregistered once resumed: in a tolerance bench run the next handover's
+            # subscriber never found AR's robot instance, which published to its old
+            # subscribers all along, and the move was taken for failed.
+            candidates_now = set(self._ghost_candidates())
+            dead = [name for name in dead if name in candidates_now]
             purge(master, dead)
         except (rosgraph.MasterError, OSError) as e:
             rospy.logdebug("anyscale decision: registration check failed: %s", e)

@@ -124,4 +124,6 @@ def test_the_tolerance_bench_finds_the_quota_before_each_run(tolerances, tmp_pat
     assert [a[a.index("--robot-cpu") + 1] for a in argvs] == ["0.34", "0.276", "0.276", "0.276",
                                                              "0.276"]
     assert "[1/2] start at goal 0, seed 11, robot 0.276 cores" in capsys.readouterr().out
+    # The calibration runs record what the runs record: the same load on the robot's quota.
+    assert all(a[a.index("--record-inputs") + 1] == tolerances.DEFAULT_INPUTS for a in argvs)
     assert "| run02-calibration | 0.276 | 0.276 cores: 2.07 Hz |" in (out / "tolerances.md").read_text()

@@ -246,7 +246,9 @@ def quota_for_this_moment(run_testbed: str, args, run_dir: str) -> float:
           "2 Hz minimum with every node home (the paper's premise), by 1-3 runs of about "
           "105 s with the link down; --robot-cpu CORES skips this", flush=True)
     quotas = QuotaForTheDay(run_testbed, args.world, run_dir,
-                            extra_argv=["--cfs-period-ms", f"{args.cfs_period_ms:g}"],
+                            extra_argv=["--cfs-period-ms", f"{args.cfs_period_ms:g}"] + (
+                                ["--record-inputs", ",".join(args.record_inputs)]
+                                if args.record_inputs else []),
                             log=lambda line: print(PREFIX + line, flush=True))
     return quotas.quota("robot_quota")
 

@@ -18,12 +18,21 @@ def test_latest_record_is_the_newest_and_none_when_missing_or_broken(tmp_path, c
     assert latest_record(str(tmp_path)) is None
     for stamp, world in (("20261123-100000", "old"), ("20261123-110000", "new")):
         os.makedirs(tmp_path / f"office_floor-{stamp}")
-        TestbedRecord(world=world).save(str(tmp_path / f"office_floor-{stamp}" / "record.json"))
+        TestbedRecord(world=world, finished_t=400.0).save(
+            str(tmp_path / f"office_floor-{stamp}" / "record.json"))
     assert latest_record(str(tmp_path)).world == "new"
     os.makedirs(tmp_path / "office_floor-20261123-120000")
     (tmp_path / "office_floor-20261123-120000" / "record.json").write_text("{not json")
     assert latest_record(str(tmp_path)) is None
     assert "unreadable record" in capsys.readouterr().out
+
+
+def test_a_run_killed_before_its_monitor_ended_is_no_record(tmp_path, capsys):
+    os.makedirs(tmp_path / "office_floor-20261127-025304")
+    TestbedRecord(world="killed", finished_t=None).save(
+        str(tmp_path / "office_floor-20261127-025304" / "record.json"))
+    assert latest_record(str(tmp_path)) is None
+    assert "killed before it ended" in capsys.readouterr().out
 
 
 def test_interrupt_then_kill_ends_a_process_that_ignores_ctrl_c():

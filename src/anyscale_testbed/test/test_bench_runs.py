@@ -3,7 +3,7 @@ import os
 import sys
 
 from anyscale_testbed.bench_runs import interrupt_then_kill, latest_record, run_logged
-from anyscale_testbed.testbed_record import TestbedRecord
+from anyscale_testbed.testbed_record import TestbedRecord, mark_interrupted
 
 
 def test_run_logged_keeps_the_console_and_the_exit_code(tmp_path):
@@ -27,12 +27,17 @@ def test_latest_record_is_the_newest_and_none_when_missing_or_broken(tmp_path, c
     assert "unreadable record" in capsys.readouterr().out
 
 
-def test_a_run_killed_before_its_monitor_ended_is_no_record(tmp_path, capsys):
-    os.makedirs(tmp_path / "office_floor-20261127-025304")
-    TestbedRecord(world="killed", finished_t=None).save(
-        str(tmp_path / "office_floor-20261127-025304" / "record.json"))
+def test_a_run_killed_or_interrupted_before_it_ended_is_no_record(tmp_path, capsys):
+    path = tmp_path / "office_floor-20261127-025304" / "record.json"
+    os.makedirs(path.parent)
+    TestbedRecord(world="killed", finished_t=None).save(str(path))
     assert latest_record(str(tmp_path)) is None
-    assert "killed before it ended" in capsys.readouterr().out
+    assert "stopped before it ended" in capsys.readouterr().out
+    TestbedRecord(world="ended", finished_t=117.3).save(str(path))
+    assert latest_record(str(tmp_path)).world == "ended"
+    mark_interrupted(str(path))
+    assert latest_record(str(tmp_path)) is None
+    assert TestbedRecord.load(str(path)).interrupted
 
 
 def test_interrupt_then_kill_ends_a_process_that_ignores_ctrl_c():

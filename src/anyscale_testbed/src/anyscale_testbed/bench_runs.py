@@ -70,8 +70,9 @@ def interrupt_then_kill(proc: subprocess.Popen, timeout_s: float):
 
 def latest_record(out_dir: str) -> Optional[TestbedRecord]:
     """The newest run's record below out_dir, None if there is none, it is unreadable, or its
-    run was killed before its monitor ended (no finished_t: the monitor saves every 5 s, so a
-    run killed 4 minutes in leaves a record of 4 minutes, which is no result to resume from)."""
+    run did not end by itself: killed before its monitor ended (no finished_t: the monitor
+    saves every 5 s, so a run killed 4 minutes in leaves a record of 4 minutes) or stopped by
+    Ctrl-C or SIGTERM (`interrupted`). Such a record is no result to resume from."""
     found = sorted(glob.glob(os.path.join(out_dir, "*", "record.json")))
     if not found:
         return None
@@ -80,7 +81,7 @@ def latest_record(out_dir: str) -> Optional[TestbedRecord]:
     except (OSError, ValueError, TypeError, KeyError) as e:
         print(f"bench: {found[-1]}: unreadable record ({e})", flush=True)
         return None
-    if rec.finished_t is None:
-        print(f"bench: {found[-1]}: its run was killed before it ended", flush=True)
+    if rec.finished_t is None or rec.interrupted:
+        print(f"bench: {found[-1]}: its run was stopped before it ended", flush=True)
         return None
     return rec

@@ -29,7 +29,7 @@ from anyscale_testbed.host_speed import CpuNormaliser
 from anyscale_testbed.quota_calibration import CalibrationError
 from anyscale_testbed.quota_for_the_day import QuotaForTheDay, parse_robot_cpu
 from anyscale_testbed.testbed_figures import colour_violations
-from anyscale_testbed.testbed_record import store_cpu_normalisation
+from anyscale_testbed.testbed_record import mark_interrupted, store_cpu_normalisation
 from anyscale_testbed.testbed_session import (LoopbackBed, NamespaceBed, TestbedSession,
                                               layout_with_cpu)
 from anyscale_testbed.two_scale_testbed import CFS_PERIOD_US, TwoScaleError, missing_capabilities
@@ -212,6 +212,7 @@ def main(default_out: str, argv=None, run_testbed: str = "") -> int:
              "normalised every 5 s" if normaliser else "")
           + f"; logs and results in {run_dir}")
 
+    interrupted = False
     try:
         with bed, (normaliser or contextlib.nullcontext()):
             if normaliser:
@@ -224,6 +225,7 @@ def main(default_out: str, argv=None, run_testbed: str = "") -> int:
             return 0 if code == 0 else 1
     except KeyboardInterrupt:
         print(PREFIX + "interrupted: stopping both scales and removing the test bed")
+        interrupted = True
         return 130
     except TwoScaleError as e:
         print(f"run_testbed: {e}", file=sys.stderr)
@@ -235,6 +237,11 @@ def main(default_out: str, argv=None, run_testbed: str = "") -> int:
                 store_cpu_normalisation(record, normaliser.history_copy(), reference_ms)
             except (OSError, ValueError, TypeError, KeyError) as e:
                 print(PREFIX + f"the quotas' history is not in the record: {e}")
+        if interrupted and os.path.exists(record):
+            try:
+                mark_interrupted(record)
+            except (OSError, ValueError, TypeError, KeyError) as e:
+                print(PREFIX + f"the record does not say that the run was interrupted: {e}")
         if os.path.exists(record):
             print(PREFIX + f"record: {record}")
 

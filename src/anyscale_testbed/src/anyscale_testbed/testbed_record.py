@@ -82,6 +82,9 @@ class TestbedRecord:
     # Inputs of the moving nodes whose receipts are in `receipts` too (the monitor's
     # ~record_inputs): a silence's cause then says whether they kept coming.
     inputs: List[str] = field(default_factory=list)
+    # run_testbed.py was stopped (Ctrl-C, SIGTERM) before the run ended by itself: the record
+    # holds what ran until then, and no bench resumes from it (bench_runs.latest_record).
+    interrupted: bool = False
 
     def save(self, path: str):
         with open(path, "w") as f:
@@ -124,6 +127,18 @@ def store_cpu_normalisation(path: str, history: Sequence[Tuple[float, float, flo
     rec.cpu_normalisation = [(t - rec.started_wall, robot, laptop, ms)
                              for t, robot, laptop, ms in history]
     rec.reference_cpu_ms = reference_cpu_ms
+    _replace(rec, path)
+
+
+def mark_interrupted(path: str):
+    """Notes in the record at `path` that its run was stopped before it ended by itself;
+    called, like store_cpu_normalisation, once the monitor has ended."""
+    rec = TestbedRecord.load(path)
+    rec.interrupted = True
+    _replace(rec, path)
+
+
+def _replace(rec: TestbedRecord, path: str):
     tmp = path + ".tmp"
     rec.save(tmp)
     os.replace(tmp, path)

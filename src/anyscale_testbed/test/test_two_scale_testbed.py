@@ -13,7 +13,7 @@ import pytest
 from anyscale_testbed.testbed_teardown import is_alive
 from anyscale_testbed.two_scale_testbed import (ScaleEnd, TwoScaleError, TwoScaleLayout,
                                                 TwoScaleTestbed, missing_capabilities, run,
-                                                shape_commands)
+                                                WORLD_NICE, shape_commands)
 
 MISSING = missing_capabilities()
 needs_testbed = pytest.mark.skipif(bool(MISSING), reason="the test bed needs " +
@@ -107,6 +107,18 @@ def test_cpu_quota_holds_a_busy_loop():
         assert share < 0.6                                   # held near 0.4 of a core
     assert not os.path.exists(quota_dir)
     assert busy.poll() is not None
+
+
+@needs_testbed
+def test_the_world_runs_outside_the_quota_above_the_scales():
+    with TwoScaleTestbed(LAYOUT, cgroup_prefix="anyscale_t") as bed:
+        world = bed.start("robot", [sys.executable, "-c", "import time; time.sleep(30)"],
+                          cpu_quota=False)
+        scale = bed.start("robot", [sys.executable, "-c", "import time; time.sleep(30)"])
+        time.sleep(0.3)
+        assert world.pid not in bed.quotas["robot"].pids()
+        assert os.getpriority(os.PRIO_PROCESS, world.pid) == WORLD_NICE
+        assert os.getpriority(os.PRIO_PROCESS, scale.pid) == os.getpriority(os.PRIO_PROCESS, 0)
 
 
 # Ignores SIGINT, as does its `sleep` (an ignored signal stays ignored across exec); prints the

@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # The main job: sets up the workspace, then runs the navigation demo on the two-scale test bed
 # with AnyScale deciding (robot and laptop in network namespaces, the link shaped by a WiFi
-# coverage model of the office floor, CPU quotas per scale), headless. Mapping changes are
+# coverage model of the office floor, CPU quotas per scale), headless. First 1-3 short runs
+# with every node home find the robot's CPU quota at which AMCL runs its 2 Hz minimum at this
+# moment (the paper's premise; --robot-cpu CORES skips them). Mapping changes are
 # printed as they happen and a result table at the end; the run's record, logs and the path
 # plot go to results/testbed/. Without root, namespaces or cgroups it says so and runs both
 # scales on loopback, unshaped. Arguments go to scripts/run_testbed.py (see --help), e.g.

@@ -16,5 +16,4 @@ except ImportError as e:
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 if __name__ == "__main__":
-    sys.exit(main(os.path.join(ROOT, "results", "testbed"),
-                  run_testbed=os.path.abspath(__file__)))
+    sys.exit(main(os.path.join(ROOT, "results", "testbed"), os.path.abspath(__file__)))

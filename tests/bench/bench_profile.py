@@ -38,6 +38,7 @@ ROOT = os.path.normpath(os.path.join(HERE, "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "src", "anyscale_testbed", "src"))
 from anyscale_testbed.testbed_session import (LoopbackBed, NamespaceBed,  # noqa: E402
                                               TestbedSession, layout_with_cpu)
+from anyscale_testbed.bench_runs import run_logged  # noqa: E402
 from anyscale_testbed.two_scale_testbed import missing_capabilities  # noqa: E402
 
 DEMO = os.path.join(ROOT, "src", "anyscale_nav_demo")
@@ -137,7 +138,7 @@ def main(argv=None) -> int:
         print(f"| {m['node']} | {m['scale']} | {m['cpu_usage']:g} % ({m['capacity_cores']:g} "
               f"cores) | {m['cpu_percent_of_one_core']:.1f} ({m['cpu_sd']:.1f}) | {rates} | "
               f"{paper[m['node']].get(m['scale'], '-')} % | {cal:.1f} | "
-              f"{m['cpu_percent_of_one_core'] / cal:.2f} |")
+              f"{m['cpu_percent_of_one_core'] / cal if cal > 0 else float('nan'):.2f} |")
     print(f"\nmemory_mb: {result['memory_mb']}; model with the figures: {model}")
     return 0
 
@@ -147,19 +148,19 @@ def calibration_side_by_side(robot_cpu: float, laptop_cpu: float, out: str) -> d
     % of one core}; {} (and a line) if it fails. Its robot case has every node in the robot's
     group, its laptop case AMCL and AR together in the laptop's."""
     path = os.path.join(out, "cpu_calibration.json")
+    log_dir = os.path.join(out, "cpu_calibration")
     log(f"bench_cpu_calibration.py at the same quotas (robot {robot_cpu:g}, laptop "
-        f"{laptop_cpu:g} cores); its log: {out}/cpu_calibration.log")
-    with open(os.path.join(out, "cpu_calibration.log"), "w") as console:
-        done = subprocess.run([sys.executable, CPU_CALIBRATION, "--quotas", f"{robot_cpu:g}",
-                               "--laptop-quotas", f"{laptop_cpu:g}", "--laptop-robot-quota",
-                               f"{robot_cpu:g}", "--json", path],
-                              stdout=console, stderr=subprocess.STDOUT)
+        f"{laptop_cpu:g} cores); its log: {log_dir}/console.log")
+    # run_logged: on Ctrl-C it passes one SIGTERM on and waits for the calibration's cleanup.
+    code = run_logged([sys.executable, CPU_CALIBRATION, "--quotas", f"{robot_cpu:g}",
+                       "--laptop-quotas", f"{laptop_cpu:g}", "--laptop-robot-quota",
+                       f"{robot_cpu:g}", "--json", path], log_dir)
     try:
         with open(path) as f:
             steps = json.load(f)
         robot, laptop = steps["robot"][0]["cpu"], steps["laptop"][0]["cpu"]
     except (OSError, ValueError, KeyError, IndexError) as e:
-        log(f"bench_cpu_calibration.py gave no figures (exit {done.returncode}: {e})")
+        log(f"bench_cpu_calibration.py gave no figures (exit {code}: {e})")
         return {}
     return {(n, scale): float(cpu[n]) for n in ("amcl", "ar_recognition")
             for scale, cpu in (("robot", robot), ("laptop", laptop)) if n in cpu}

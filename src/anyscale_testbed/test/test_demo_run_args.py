@@ -109,6 +109,14 @@ def test_robot_cpu_is_the_calibration_files_cores_or_auto(capsys):
         assert message in capsys.readouterr().err
 
 
+def test_robot_cpu_auto_and_normalise_cpu_are_not_given_together(capsys):
+    with pytest.raises(SystemExit) as ended:
+        parse_args(["--robot-cpu", "auto", "--normalise-cpu"], "out")
+    assert ended.value.code == 2
+    assert "--robot-cpu auto and --normalise-cpu both correct" in capsys.readouterr().err
+    assert parse_args(["--robot-cpu", "0.3", "--normalise-cpu"], "out").normalise_cpu
+
+
 def test_loops_are_one_unless_asked_for_and_bounded(capsys):
     assert parse_args([], "out").loops == 1
     assert parse_args(["--loops", "2"], "out").loops == 2
@@ -135,10 +143,12 @@ def test_robot_cpu_auto_runs_the_calibration_with_the_runs_own_options(tmp_path,
         return 0
     monkeypatch.setattr(quota_for_the_day, "run_logged", fake_run)
     monkeypatch.setattr(quota_for_the_day, "quota_cores", lambda robot, laptop: (0.34, 0.9))
-    args = parse_args(["--robot-cpu", "auto", "--cfs-period-ms", "50"], "out")
+    args = parse_args(["--robot-cpu", "auto", "--cfs-period-ms", "50", "--model", "my.yaml"],
+                      "out")
     quota = demo_run.quota_for_this_moment("run_testbed.py", args, str(tmp_path))
     assert 0.23 < quota < 0.27
     assert len(argvs) == 2 and all(a[a.index("--cfs-period-ms") + 1] == "50" for a in argvs)
+    assert all(a[a.index("--model") + 1] == "my.yaml" for a in argvs)
     assert all(a[a.index("--schedule") + 1] == "[[0, 0]]" for a in argvs)   # every node home
     printed = capsys.readouterr().out.splitlines()
     assert all(line.startswith(demo_run.PREFIX) for line in printed)

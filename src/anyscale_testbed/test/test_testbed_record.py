@@ -236,3 +236,9 @@ def test_an_output_is_judged_once_the_subscribers_of_its_connection_run():
                                           tolerances=rec.tolerances,
                                           subscribers=rec.subscribers), **older})
         assert [round(v.start_t, 1) for v in tolerance_violations(rec_old)] == [17.0, 29.9]
+    # A silence under way when navigation started counts from that moment: silent 25.0-28.0 s,
+    # 2.1 s of it after 25.9 s.
+    under_way = ticks(16.0, 25.0, 0.2) + ticks(28.0, 40.0, 0.2)
+    rec_late = TestbedRecord(**{**rec.__dict__, "receipts": {"/ar_markers": under_way}})
+    assert [(round(v.start_t, 1), round(v.silence_s, 1))
+            for v in tolerance_violations(rec_late)] == [(25.9, 2.1)]

@@ -110,15 +110,19 @@ def test_cpu_quota_holds_a_busy_loop():
 
 
 @needs_testbed
-def test_the_world_runs_outside_the_quota_above_the_scales():
+def test_the_world_runs_outside_the_quota_above_the_scales_only_when_asked():
     with TwoScaleTestbed(LAYOUT, cgroup_prefix="anyscale_t") as bed:
         world = bed.start("robot", [sys.executable, "-c", "import time; time.sleep(30)"],
-                          cpu_quota=False)
+                          cpu_quota=False, nice=WORLD_NICE)
+        outside = bed.start("laptop", [sys.executable, "-c", "import time; time.sleep(30)"],
+                            cpu_quota=False)
         scale = bed.start("robot", [sys.executable, "-c", "import time; time.sleep(30)"])
         time.sleep(0.3)
         assert world.pid not in bed.quotas["robot"].pids()
         assert os.getpriority(os.PRIO_PROCESS, world.pid) == WORLD_NICE
-        assert os.getpriority(os.PRIO_PROCESS, scale.pid) == os.getpriority(os.PRIO_PROCESS, 0)
+        ours = os.getpriority(os.PRIO_PROCESS, 0)
+        assert os.getpriority(os.PRIO_PROCESS, scale.pid) == ours
+        assert os.getpriority(os.PRIO_PROCESS, outside.pid) == ours
 
 
 # Ignores SIGINT, as does its `sleep` (an ignored signal stays ignored across exec); prints the

@@ -26,13 +26,14 @@ import yaml
 from anyscale_testbed.calibration_file import (calibrated_reference_ms, nav_demo_path,
                                                quota_cores)
 from anyscale_testbed.host_speed import CpuNormaliser
-from anyscale_testbed.quota_calibration import CalibrationError
-from anyscale_testbed.quota_for_the_day import QuotaForTheDay, parse_robot_cpu
+from anyscale_testbed.quota_calibration import MAX_RUNS, CalibrationError
+from anyscale_testbed.quota_for_the_day import CALIBRATION_RUN_S, QuotaForTheDay, parse_robot_cpu
 from anyscale_testbed.testbed_figures import colour_violations
 from anyscale_testbed.testbed_record import mark_interrupted, store_cpu_normalisation
 from anyscale_testbed.testbed_session import (LoopbackBed, NamespaceBed, TestbedSession,
                                               layout_with_cpu)
-from anyscale_testbed.two_scale_testbed import CFS_PERIOD_US, TwoScaleError, missing_capabilities
+from anyscale_testbed.two_scale_testbed import (CFS_PERIOD_US, WORLD_NICE, TwoScaleError,
+                                                missing_capabilities)
 from anyscale_nav_demo.goal_sequence import loop_from_goal
 
 PREFIX = "[testbed] "
@@ -89,8 +90,9 @@ def parse_args(argv, default_out: str):
                    help="end after this many seconds (default: when the loop is done)")
     p.add_argument("--robot-cpu", default=None, metavar="CORES|auto",
                    help="robot CPU quota (default: the calibration file's). auto (what "
-                        "scripts/run_demo.sh passes): before the run, 1-3 short runs with every "
-                        "node home and the link down (about 105 s each) find the quota at which "
+                        f"scripts/run_demo.sh passes): before the run, 1-{MAX_RUNS} short runs "
+                        f"with every node home and the link down ({CALIBRATION_RUN_S:g} s each) "
+                        "find the quota at which "
                         "AMCL runs the premise's 2 Hz at this moment, as the paper's robot did; "
                         "this host's speed drifts, so a fixed quota held the premise only on the "
                         "day it was measured. The run then uses it; it is printed, so that a "
@@ -142,6 +144,11 @@ def parse_args(argv, default_out: str):
     if args.seed < 0:
         p.error(f"--seed: expected an integer >= 0, got {args.seed}")
     args.calibrate_robot_cpu = args.robot_cpu == "auto"
+    if args.calibrate_robot_cpu and args.normalise_cpu:
+        # Both correct for the host's speed: the quota found for this moment would be scaled
+        # again by the calibration file's reference_cpu_ms.
+        p.error("--robot-cpu auto and --normalise-cpu both correct the quota for this host's "
+                "speed; give one of them")
     try:
         args.robot_cpu = parse_robot_cpu(args.robot_cpu) if args.robot_cpu else None
     except ValueError as e:
@@ -159,7 +166,7 @@ def parse_args(argv, default_out: str):
     return args
 
 
-def main(default_out: str, argv=None, run_testbed: str = "") -> int:
+def main(default_out: str, run_testbed: str, argv=None) -> int:
     """One run; `default_out` is where --out defaults to (the caller's results/testbed),
     `run_testbed` the script that runs this (--robot-cpu auto runs it for its calibration)."""
     args = parse_args(argv, default_out)
@@ -194,7 +201,7 @@ def main(default_out: str, argv=None, run_testbed: str = "") -> int:
         try:
             robot_cpu = quota_for_this_moment(run_testbed, args, run_dir)
         except (CalibrationError, KeyboardInterrupt) as e:
-            print(PREFIX + f"--robot-cpu auto: {e or 'interrupted'}; no run")
+            print(PREFIX + f"--robot-cpu auto: {str(e) or 'interrupted'}; no run")
             return 1 if isinstance(e, CalibrationError) else 130
     bed = LoopbackBed() if loopback else NamespaceBed(layout_with_cpu(robot_cpu, laptop_cpu),
                                                       cfs_period_us=int(args.cfs_period_ms * 1000))
@@ -250,12 +257,14 @@ def quota_for_this_moment(run_testbed: str, args, run_dir: str) -> float:
     """--robot-cpu auto: the robot's quota at which AMCL runs the premise's rate with every node
     home, found by short runs kept in run_dir/robot_quota/ (quota_for_the_day.py)."""
     print(PREFIX + "--robot-cpu auto: finding the robot's CPU quota at which AMCL runs its "
-          "2 Hz minimum with every node home (the paper's premise), by 1-3 runs of about "
-          "105 s with the link down; --robot-cpu CORES skips this", flush=True)
+          f"2 Hz minimum with every node home (the paper's premise), by 1-{MAX_RUNS} runs of "
+          f"{CALIBRATION_RUN_S:g} s with the link down; --robot-cpu CORES skips this",
+          flush=True)
     quotas = QuotaForTheDay(run_testbed, args.world, run_dir,
                             extra_argv=["--cfs-period-ms", f"{args.cfs_period_ms:g}"] + (
                                 ["--record-inputs", ",".join(args.record_inputs)]
-                                if args.record_inputs else []),
+                                if args.record_inputs else []) + (
+                                ["--model", args.model] if args.model else []),
                             log=lambda line: print(PREFIX + line, flush=True))
     return quotas.quota("robot_quota")
 
@@ -290,7 +299,8 @@ def launch_demo(session: TestbedSession, bed, args, model: str, start, goals, re
             f"duration_s:={args.duration}", f"rviz:={str(args.rviz).lower()}",
             f"record_critical:={str(record_critical).lower()}",
             f"record_inputs:={json.dumps(args.record_inputs)}"],
-        cpu_quota=False, wait_for_master=master_running, echo=echo or echo_monitor_lines)
+        cpu_quota=False, wait_for_master=master_running, echo=echo or echo_monitor_lines,
+        nice=WORLD_NICE)
     # The world launch runs the simulator and the recorder outside the robot's quota.
     session.roslaunch("robot", "robot", [
         "anyscale_nav_demo", "robot.launch", "sim:=false", "record:=false",

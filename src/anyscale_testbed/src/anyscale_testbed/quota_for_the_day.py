@@ -1,8 +1,8 @@
 """The robot's quota for the day on the test bed: short runs of scripts/run_testbed.py with
 every node home, stepped by quota_calibration.calibrate_quota until AMCL runs at the premise's
 2 Hz, each calibration kept in its own directory (calibration.json), so that a resumed
-evaluation or bench runs at the quota its recorded runs had. Used by run_evaluation.py and
-bench_tolerances.py (--robot-cpu auto)."""
+evaluation or bench runs at the quota its recorded runs had. Used by run_evaluation.py,
+bench_tolerances.py and run_testbed.py (--robot-cpu auto, which scripts/run_demo.sh passes)."""
 import json
 import math
 import os
@@ -18,6 +18,7 @@ CALIBRATION_FILE = "calibration.json"
 # A calibration run: START_UP_S of start-up, then this long of AMCL's rate with every node home
 # (about 150 poses at the premise's 2 Hz).
 CALIBRATION_MEASURE_S = 75.0
+CALIBRATION_RUN_S = START_UP_S + CALIBRATION_MEASURE_S
 # No migration: the link is down throughout, so every node stays on the robot.
 EVERY_NODE_HOME_LINK = ["--link", "schedule", "--schedule", "[[0, 0]]"]
 
@@ -95,12 +96,11 @@ class QuotaForTheDay:
     def _home_rate(self, quota: float, cal_dir: str, k: int) -> float:
         """AMCL's rate with every node home after START_UP_S, in a short run."""
         run_dir = os.path.join(cal_dir, f"run{k}")
-        duration = START_UP_S + CALIBRATION_MEASURE_S
         argv = [sys.executable, self.run_testbed, "--world", self.world, "--duration",
-                f"{duration:g}", "--robot-cpu", f"{quota:g}",
+                f"{CALIBRATION_RUN_S:g}", "--robot-cpu", f"{quota:g}",
                 "--out", run_dir] + EVERY_NODE_HOME_LINK + self.extra_argv
         self.log(f"  calibration run {k} (at most {MAX_RUNS}): robot {quota:g} cores, every "
-                 f"node home, {duration:g} s; log {run_dir}/console.log")
+                 f"node home, {CALIBRATION_RUN_S:g} s; log {run_dir}/console.log")
         run_logged(argv, run_dir)
         rec = latest_record(run_dir)
         row = figures_with_every_node_home(rec, START_UP_S) if rec is not None else None

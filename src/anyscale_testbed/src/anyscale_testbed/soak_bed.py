@@ -17,6 +17,7 @@ from .proc_census import cpu_usage, master_processes, memory_and_fds, processes_
 from .soak_growth import ResourceSample
 from .soak_invariants import CensusSample
 from .testbed_monitor_ros import node_processes
+from .two_scale_testbed import WORLD_NICE
 
 # The supervised processes: the name roslaunch gives them -> their role.
 ROLES = {"anyscale_agent_robot": "agent_robot", "anyscale_agent_laptop": "agent_laptop",
@@ -115,7 +116,8 @@ class Injector:
 
     def start_roscore(self):
         self.roscore = self.bed.start("robot", ["roscore"], self.session.env("robot"),
-                                      os.path.join(self.log_dir, "roscore.log"), cpu_quota=False)
+                                      os.path.join(self.log_dir, "roscore.log"), cpu_quota=False,
+                                      nice=WORLD_NICE)
 
     def pids_of(self, role: str) -> List[int]:
         pids: Dict[str, List[int]] = {}

@@ -192,7 +192,8 @@ def move_figures(rec: TestbedRecord, outputs: Dict[str, str]) -> List[MoveFigure
 
 def judged_from(rec: TestbedRecord, topic: str) -> float:
     """When the connections on `topic` exist: the latest of its subscribers' first starts
-    (-inf where the record names no subscribers, or none was started by AnyScale). Before it
+    (-inf where the record names no subscribers, or one of them was not started by AnyScale,
+    as a static node is not: its connection exists from the start). Before it
     the output reaches nobody: during the initial configuration on a 0.25-core robot, AR
     recognition publishes from about t=16 s and navigation, its subscriber, runs from about
     t=26 s, and the nodes starting in between held /ar_markers back 1.1 s once (tolerance
@@ -209,9 +210,15 @@ def judged_from(rec: TestbedRecord, topic: str) -> float:
 
 
 def judged_receipts(rec: TestbedRecord, topic: str) -> List[float]:
-    """The topic's receive times from when its connections exist (judged_from)."""
+    """The topic's receive times from when its connections exist (judged_from). An output
+    already publishing then starts with `since` itself: a silence under way when its
+    connections came up counts from that moment."""
     since = judged_from(rec, topic)
-    return [t for t in rec.receipts.get(topic, []) if t >= since]
+    receipts = rec.receipts.get(topic, [])
+    after = [t for t in receipts if t >= since]
+    if len(after) < len(receipts) and math.isfinite(since):
+        return [since] + after
+    return after
 
 
 def tolerance_violations(rec: TestbedRecord, outputs: Optional[Dict[str, str]] = None,

@@ -65,7 +65,8 @@ class LoopbackBed:
     def uplink_interface(self, scale: str) -> str:
         return ""               # loopback: no interface of the link to watch
 
-    def start(self, scale, argv, env=None, log_path=None, cpu_quota=True, stdout=None):
+    def start(self, scale, argv, env=None, log_path=None, cpu_quota=True, stdout=None, nice=0):
+        # Loopback runs as the user, who may not raise a priority: `nice` is left out here.
         proc = start_session(argv, env, log_path, stdout)
         self.processes.append(proc)
         return proc
@@ -119,8 +120,8 @@ class TestbedSession:
                        self.port, self.log_dir)
 
     def roslaunch(self, scale: str, name: str, launch_args: List[str], cpu_quota: bool = True,
-                  wait_for_master: bool = True,
-                  echo: Optional[Callable[[str], None]] = None) -> subprocess.Popen:
+                  wait_for_master: bool = True, echo: Optional[Callable[[str], None]] = None,
+                  nice: int = 0) -> subprocess.Popen:
         """`roslaunch` on a scale; the first one (wait_for_master=False) brings up the master.
         Output goes to logs/NAME.log; with `echo`, each line is also handed to it."""
         # The port comes from ROS_MASTER_URI: `-p` would make roslaunch put the master on this
@@ -128,9 +129,9 @@ class TestbedSession:
         argv = (["roslaunch", "--wait"] if wait_for_master else ["roslaunch"]) + list(launch_args)
         log_path = os.path.join(self.log_dir, f"{name}.log")
         if echo is None:
-            return self.bed.start(scale, argv, self.env(scale), log_path, cpu_quota)
+            return self.bed.start(scale, argv, self.env(scale), log_path, cpu_quota, nice=nice)
         proc = self.bed.start(scale, argv, self.env(scale), None, cpu_quota,
-                              stdout=subprocess.PIPE)
+                              stdout=subprocess.PIPE, nice=nice)
         threading.Thread(target=copy_lines, args=(proc.stdout, log_path, echo),
                          daemon=True).start()
         return proc

@@ -28,8 +28,11 @@ CGROUP_CPU_ROOT = "/sys/fs/cgroup/cpu"
 # quota to a CPU in slices of sched_cfs_bandwidth_slice_us (5 ms here): a 3 ms quota is one
 # slice on one CPU, and the group's threads on the other wait out the period.
 CFS_PERIOD_US = 100_000
-# The niceness of what a scale starts outside its CPU quota: the world and the instruments
-# (see start).
+# The niceness of the world's launch (simulator, link shaper, monitor, and the master it
+# brings up), outside the quotas: above the scales, as a robot's sensors do not wait for its
+# computers. At equal weight they shared the 2-core host with the laptop's 0.9 cores, and a
+# fault soak in CI judged /joint_states (critical, 40 Hz) silent 0.204 s > its 0.2 s limit
+# with nothing on its path moving.
 WORLD_NICE = -10
 
 
@@ -266,20 +269,21 @@ class TwoScaleTestbed:
 
     def start(self, scale: str, argv: List[str], env: Optional[Dict[str, str]] = None,
               log_path: Optional[str] = None, cpu_quota: bool = True,
-              stdout: Optional[int] = None) -> subprocess.Popen:
+              stdout: Optional[int] = None, nice: int = 0) -> subprocess.Popen:
         """Starts argv inside the scale's namespace, in its own session, and in the scale's CPU
-        group unless `cpu_quota` is False (the simulated world is not the robot's computer).
-        Output goes to `log_path`, or to `stdout` (e.g. subprocess.PIPE), or nowhere."""
+        group unless `cpu_quota` is False (the simulated world is not the robot's computer), at
+        niceness `nice` (WORLD_NICE for the world). Output goes to `log_path`, or to `stdout`
+        (e.g. subprocess.PIPE), or nowhere."""
         quota = self.quotas.get(scale) if cpu_quota else None
-        # The child joins the group before exec, so nothing it forks can escape the quota.
-        # Outside the quota run the world's hardware (simulator, link shaper) and the
-        # instruments (the monitor): above the scales (WORLD_NICE), as a robot's sensors do not
-        # wait for its computers. On the 2-core host they shared the CPU with the laptop's
-        # 0.9 cores at equal weight, and a fault soak in CI judged /joint_states (critical, 40
-        # Hz) silent 0.204 s > its 0.2 s limit with nothing on its path moving.
-        preexec = (lambda: quota.add(os.getpid())) if quota else (lambda: os.nice(WORLD_NICE))
+
+        def before_exec():
+            # The child joins the group before exec, so nothing it forks can escape the quota.
+            if quota:
+                quota.add(os.getpid())
+            if nice:
+                os.nice(nice)
         proc = start_session(namespace_exec(self.end(scale), argv), env, log_path, stdout,
-                             preexec)
+                             before_exec if quota or nice else None)
         self.processes.append(proc)
         return proc
 

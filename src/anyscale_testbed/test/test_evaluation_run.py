@@ -307,3 +307,10 @@ def test_robot_cpu_auto_calibrates_each_pair_to_the_premise_and_keeps_it(
     assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", argv) == 0
     assert [a[a.index("--robot-cpu") + 1] for a in fake.argvs] == ["0.276", "0.276"]
     assert "pair2-calibration: robot 0.276 cores, calibrated already" in capsys.readouterr().out
+    # A calibration not made yet when the evaluation resumes starts from the newest one made.
+    shutil.rmtree(os.path.join(out, "pair2-calibration"))
+    for key in ("pair2-baseline", "pair2-paper"):
+        shutil.rmtree(os.path.join(out, key))
+    fake.argvs.clear()
+    assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", argv) == 0
+    assert [a[a.index("--robot-cpu") + 1] for a in fake.argvs][0] == "0.276"

@@ -16,6 +16,7 @@ from anyscale_core.allocators import make_allocator
 from anyscale_core.decision_engine import DecisionEngine
 from anyscale_core.decision_types import DecisionParams
 from anyscale_core import decision_ros
+from anyscale_core import restart_state
 from anyscale_core.restart_state import RestartState, RestartStateError, decode, encode
 
 from decision_reports import remote, reports
@@ -277,6 +278,24 @@ def test_the_wrapper_writes_on_change_and_refreshes_while_nodes_are_out(testbed_
     clock[0] = 1.0 + decision_ros.STATE_REFRESH_S
     node._save_state()
     assert len(writes) == 3                          # out: saved_at kept current
+
+
+def test_a_loss_time_moving_on_while_the_link_stays_down_is_written_every_refresh_only():
+    home = RestartState(0.0, {"amcl": "robot"}, {}, None)
+    down = dataclasses.replace(home, link_lost_at=10.0)
+    refresh = decision_ros.STATE_REFRESH_S
+    assert restart_state.worth_writing(home, None, False, 0.0, refresh)
+    assert restart_state.worth_writing(down, home, False, 0.3, refresh)       # the loss
+    later = dataclasses.replace(down, saved_at=0.3, link_lost_at=10.3)        # a tick on
+    assert not restart_state.worth_writing(later, down, False, 0.3, refresh)
+    assert restart_state.worth_writing(dataclasses.replace(later, link_lost_at=10.0 + refresh),
+                                       down, False, refresh, refresh)
+    assert restart_state.worth_writing(home, down, False, 0.3, refresh)       # hold over
+    back = dataclasses.replace(later, migrated_back_at={"amcl": 10.3})
+    assert restart_state.worth_writing(back, down, False, 0.3, refresh)       # other change
+    out = dataclasses.replace(home, mapping={"amcl": "laptop"})
+    assert not restart_state.worth_writing(out, out, True, 1.0, refresh)
+    assert restart_state.worth_writing(out, out, True, refresh, refresh)      # kept current
 
 
 def test_the_wrapper_survives_a_master_that_is_gone(testbed_ch, monkeypatch):

@@ -6,7 +6,6 @@ import os
 import threading
 import time
 import xmlrpc.client
-from dataclasses import replace
 from typing import Dict, List
 
 import diagnostic_updater
@@ -25,7 +24,7 @@ from .decision_params import NodeParams, ParamError, prepare_decision, read_para
 from .decision_types import RenewLeases, StartNode
 from .model import ModelError
 from .process_priority import set_own_nice
-from .restart_state import encode
+from .restart_state import encode, worth_writing
 
 # A remote scale's status silent this long while the robot's uplink is up: a new connection.
 RESUBSCRIBE_AFTER_S = 5.0
@@ -43,11 +42,12 @@ RESUBSCRIBE_AFTER_S = 5.0
 # - the agents know when they started each instance, but not whether a start at home was a
 #   return, nor when the link was lost; carrying that there would take a message change and
 #   the C++ agent for what one parameter holds.
-# Written when it changes (a tick at most one period after the change, so a node killed within
-# that period may lose the latest) and, while nodes are out, at least every STATE_REFRESH_S: its
-# saved_at then says the mapping was current, so a restart that comes within T finds the nodes
-# whose lease ran out meanwhile and holds them home for T. One write is one XML-RPC call to the
-# local master, made on a worker thread of its own: a master that is gone or slow holds no tick.
+# Written when it changes (restart_state.worth_writing; a tick at most one period after the
+# change, so a node killed within that period may lose the latest) and, while nodes are out, at
+# least every STATE_REFRESH_S: its saved_at then says the mapping was current, so a restart
+# that comes within T finds the nodes whose lease ran out meanwhile and holds them home for T.
+# One write is one XML-RPC call to the local master, made on a worker thread of its own: a
+# master that is gone or slow holds no tick.
 STATE_PARAM = "~restart_state"
 STATE_REFRESH_S = 2.0
 # What an XML-RPC call to the master raises when it is gone, does not answer, or breaks off.
@@ -63,7 +63,7 @@ class DecisionNode(AgentActions):
         self.engine = DecisionEngine(self.ch, allocator, params.engine, time.monotonic())
         self._restore_state()
         self.state_worker = Worker("anyscale_state")
-        self.state_written = None             # the RestartState (saved_at 0) last written
+        self.state_written = None             # the RestartState last written
         self.state_written_at = -math.inf
         self.lock = threading.Lock()          # the engine and the reports, across threads
         self.wake = threading.Event()         # set: tick now (a link was lost, a node ended)
@@ -184,12 +184,11 @@ class DecisionNode(AgentActions):
         now = time.monotonic()
         with self.lock:
             state = self.engine.restart_state(now)
-        unchanged = replace(state, saved_at=0.0)
         out = any(s != self.master for s in state.mapping.values())
-        if unchanged == self.state_written and \
-                not (out and now - self.state_written_at >= STATE_REFRESH_S):
+        if not worth_writing(state, self.state_written, out, now - self.state_written_at,
+                             STATE_REFRESH_S):
             return
-        self.state_written, self.state_written_at = unchanged, now
+        self.state_written, self.state_written_at = state, now
         self.state_worker.submit(lambda text=encode(state, time.time(), now):
                                  self._write_state(text), key="state")
 

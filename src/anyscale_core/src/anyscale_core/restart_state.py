@@ -32,7 +32,7 @@ run) holds nothing any more.
 Malformed state (not JSON, another version, a time that is no number) raises
 RestartStateError with what was wrong; the engine then starts fresh (DecisionEngine.
 restore_saved_state), as a new decision node always did."""
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import json
 import math
 from typing import Dict, Mapping, Optional
@@ -51,6 +51,25 @@ class RestartState:
     mapping: Mapping[str, str] = field(default_factory=dict)
     migrated_back_at: Mapping[str, float] = field(default_factory=dict)
     link_lost_at: Optional[float] = None
+
+
+def worth_writing(state: RestartState, written: Optional[RestartState], out: bool,
+                  since_written_s: float, refresh_s: float) -> bool:
+    """Whether `state` should replace `written`, the state last stored (None: nothing yet),
+    stored `since_written_s` ago: when what it holds changed, and every `refresh_s` while nodes
+    are `out` (saved_at then says the mapping was current). A loss time that only moved on by
+    less than refresh_s is no change: while the link stays down it moves on every tick, and
+    written each tick it cost the robot 3 parameter writes a second for as long as the link
+    was down, when the robot does all the work; a restart loses at most refresh_s of a hold
+    of hold_after_loss_s, and a link still down is seen down afresh at once."""
+    if written is None:
+        return True
+    if out and since_written_s >= refresh_s:
+        return True
+    new, old = state.link_lost_at, written.link_lost_at
+    if new is not None and old is not None and new - old < refresh_s:
+        state = replace(state, link_lost_at=old)
+    return replace(state, saved_at=0.0) != replace(written, saved_at=0.0)
 
 
 def encode(state: RestartState, wall_now: float, now: float) -> str:

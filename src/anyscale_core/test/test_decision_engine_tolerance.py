@@ -81,6 +81,36 @@ def test_moved_node_gets_a_start_up_grace(testbed_ch):
     assert e.tick(reports(13.0, rates=silent), 13.0).violating == ["amcl"]
 
 
+def test_a_moved_node_that_published_is_judged_by_its_silence_inside_the_grace(testbed_ch):
+    """Evaluation run (office floor): AMCL's laptop instance published for 1.4 s, then lost
+    its lease behind a link AR's camera had filled; /amcl_pose stayed silent 5.9 s (Δ 2 s)
+    because the 8 s grace judged nothing."""
+    e = DecisionEngine(testbed_ch, make_allocator("paper"),
+                       DecisionParams(bandwidth_hold_s=0.0, startup_grace_s=8.0))
+    e.adopt_or_start(reports(0.0), 0.0)
+    e.tick(reports(10.0, bandwidth=3.0), 10.0)                        # AMCL moves out
+    assert remote(e) == ["amcl"]
+    silent = reports(12.0, bandwidth=3.0, silence={"/amcl_pose": 0.8})
+    # Starting (the old instance still publishes until the new one has): no alarm.
+    assert not e.silence_alarm(silent["robot"], 12.0)
+    assert e.tick(silent, 12.0).violating == [] and remote(e) == ["amcl"]
+    e.output_seen("amcl", 12.5)
+    # A topic an agent has not heard yet (it may have begun counting just now) is no silence.
+    unheard = reports(12.6, bandwidth=3.0, silence={"/amcl_pose": math.inf})
+    assert not e.silence_alarm(unheard["robot"], 12.6)
+    assert e.tick(unheard, 12.6).violating == []
+    silent = reports(13.0, bandwidth=3.0, silence={"/amcl_pose": 0.8})
+    assert e.silence_alarm(silent["robot"], 13.0)
+    result = e.tick(silent, 13.0)
+    assert result.violating == ["amcl"] and remote(e) == []
+    assert "silent 0.80 s on robot" in result.events[0].reason
+    # Rates are still not judged inside the grace: the agents' windows are filling.
+    e.tick(reports(30.0, bandwidth=3.0), 30.0)                        # out again
+    assert remote(e) == ["amcl"]
+    e.output_seen("amcl", 30.5)
+    assert e.tick(reports(31.0, bandwidth=3.0, rates={"/amcl_pose": 0.0}), 31.0).violating == []
+
+
 @pytest.mark.parametrize("rate,age,expected", [(10.0, 0.05, 10.0), (10.0, 2.0, 0.5),
                                                (5.0, math.inf, 0.0), (5.0, 0.0, 5.0)])
 def test_effective_rate_follows_silence(rate, age, expected):

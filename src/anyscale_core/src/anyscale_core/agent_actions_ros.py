@@ -92,6 +92,8 @@ class AgentActions:
             outcome = PUBLISHED if registered else TIMED_OUT
         if outcome != TIMED_OUT:
             if outcome == PUBLISHED:
+                with self.lock:
+                    self.engine.output_seen(node, time.monotonic())
                 rospy.loginfo("anyscale decision: %s on %s published %.2f s after its start; "
                               "%s the instance on %s", node, target, time.monotonic() - began,
                               "pausing" if stop.pause else "stopping", source)

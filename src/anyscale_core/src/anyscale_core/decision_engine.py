@@ -31,6 +31,7 @@ class DecisionEngine:
         self.assign = ch.initial_mapping()
         self.migrated_back_at: Dict[int, float] = {}
         self.moved_at: Dict[int, float] = {}
+        self.output_seen_at: Dict[int, float] = {}   # a moved node's new instance published
         self.handoff: Dict[str, Mapping[str, float]] = {}
         self.objective = ObjectiveIntegrator(start_time, perf(ch, self.assign))
         self.trackers = [FrequencyToleranceTracker(c.freq_min, c.tolerance)
@@ -182,6 +183,12 @@ class DecisionEngine:
         return TickResult(actions, events, state,
                           [self.ch.node_names[i] for i in sorted(violating)])
 
+    def output_seen(self, node: str, now: float):
+        """The new instance of a moved `node` has published (the wrapper's handover watch saw
+        it): from now its connections' silences are judged again, inside the start-up grace
+        (_settling)."""
+        self.output_seen_at[self.ch.node_index(node)] = now
+
     def start_acknowledged(self, node: str, now: float):
         """The agent answered a start of `node`: reports received before now may still show the
         instance it replaces as ended."""
@@ -298,12 +305,16 @@ class DecisionEngine:
             ends = self._remote_ends(c)
             if not ends:
                 continue
-            if self._settling(c, now):
-                tracker.update(now, math.inf)      # settling after a move: not judged
-                continue
             conn = self.ch.model.connections[c]
             scale = self.ch.scale_names[self.assign[self.ch.conn_sub[c]]]
             report = reports.get(scale)
+            if self._settling(c, now):
+                tracker.update(now, math.inf)      # settling after a move: rates not judged
+                why = (self._silence_spent(c, report, heard_only=True)
+                       if self._handed_over(c, now) else "")
+                if why:
+                    violating.update((i, why) for i in ends if not self.ch.pinned[i])
+                continue
             rate = report.topic_rates.get(conn.topic, math.nan) if report else math.nan
             tracker.update(now, rate)
             why = self._silence_spent(c, report)
@@ -321,8 +332,8 @@ class DecisionEngine:
         for c in range(len(self.trackers)):
             if (self.ch.scale_names[self.assign[self.ch.conn_sub[c]]] == report.scale
                     and any(not self.ch.pinned[i] for i in self._remote_ends(c))
-                    and not self._settling(c, now)
-                    and self._silence_spent(c, report)):
+                    and self._silence_spent(c, report, heard_only=self._settling(c, now))
+                    and (not self._settling(c, now) or self._handed_over(c, now))):
                 return True
         return False
 
@@ -335,7 +346,19 @@ class DecisionEngine:
         return any(now - self.moved_at.get(i, -math.inf) < self.params.startup_grace_s
                    for i in (self.ch.conn_pub[c], self.ch.conn_sub[c]))
 
-    def _silence_spent(self, c: int, report: Optional[ScaleReport]) -> str:
+    def _handed_over(self, c: int, now: float) -> bool:
+        """Every end of connection c still settling has published from its new instance since:
+        the grace covers a start, and the old instance publishes until the new one has (make
+        before break), so a silence after that is the output's own. Within the grace it was
+        not judged at all: AMCL moved out onto a link that AR's camera then saturated, its
+        laptop instance published for 1.4 s, lost its lease behind the full link, and
+        /amcl_pose stayed silent 5.9 s (Δ 2 s), judged only once the 8 s grace ran out."""
+        settling = [i for i in (self.ch.conn_pub[c], self.ch.conn_sub[c])
+                    if now - self.moved_at.get(i, -math.inf) < self.params.startup_grace_s]
+        return all(self.output_seen_at.get(i, -math.inf) >= self.moved_at[i] for i in settling)
+
+    def _silence_spent(self, c: int, report: Optional[ScaleReport],
+                       heard_only: bool = False) -> str:
         """Why connection c must come home for its silence ('' if it need not). The checked
         promise is that no judged connection is silent for longer than its tolerance, and a
         rate over a window falls below freq_min only well into a silence; a return takes
@@ -348,7 +371,8 @@ class DecisionEngine:
         if report is None or share <= 0 or conn.tolerance <= 0:
             return ""
         silence = report.topic_silence.get(conn.topic, math.nan)
-        if not silence >= share * conn.tolerance:
+        if not silence >= share * conn.tolerance or (heard_only and math.isinf(silence)):
+            # heard_only: settling, an agent may have begun counting the topic just now
             return ""
         quiet = f"silent {silence:.2f} s" if math.isfinite(silence) else "never received"
         return (f"{conn.name} {quiet} on {report.scale}, over {100 * share:.0f} % of its "

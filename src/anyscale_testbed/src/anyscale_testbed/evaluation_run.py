@@ -16,8 +16,9 @@ grouped (the order before): the baseline runs first (baseline, baseline-2, ...,
 --baseline-runs), then paper-seedN, paper_local-seedN, optimal-seedN, best_case.
 
 Resumable: a run whose directory in --out already holds the record of a run that ended is not
-run again, its record is read (a run killed midway is run again). The table has every run recorded in --out under a key of either order (the
-plan's first), so results recorded in the grouped order still load. A full office-floor run
+run again, its record is read (a run killed midway is run again). The table has every run
+recorded in --out under a key of either order (the plan's first), so results recorded in the
+grouped order still load. A full office-floor run
 takes 8-10 minutes with its set-up, so the 17 runs of the paired order take about 2.8 hours;
 the machine should be left to them. Root; run with the workspace sourced:
     sudo -E /usr/bin/python3 scripts/run_evaluation.py --out results/evaluation

@@ -308,20 +308,17 @@ class DecisionEngine:
             conn = self.ch.model.connections[c]
             scale = self.ch.scale_names[self.assign[self.ch.conn_sub[c]]]
             report = reports.get(scale)
+            why = self._silence_judged(c, report, now)
             if self._settling(c, now):
                 tracker.update(now, math.inf)      # settling after a move: rates not judged
-                why = (self._silence_spent(c, report, heard_only=True)
-                       if self._handed_over(c, now) else "")
-                if why:
-                    violating.update((i, why) for i in ends if not self.ch.pinned[i])
-                continue
-            rate = report.topic_rates.get(conn.topic, math.nan) if report else math.nan
-            tracker.update(now, rate)
-            why = self._silence_spent(c, report)
-            if tracker.violated(now) or tracker.used_fraction(now) >= self.params.act_at_tolerance:
-                counted = f"{rate:.1f} Hz" if math.isfinite(rate) else "no rate"
-                why = (f"{conn.name} {counted} on {scale} < {conn.freq_min:g} Hz for "
-                       f"{tracker.below_for(now):.1f} s of {conn.tolerance:g} s")
+            else:
+                rate = report.topic_rates.get(conn.topic, math.nan) if report else math.nan
+                tracker.update(now, rate)
+                if tracker.violated(now) or \
+                        tracker.used_fraction(now) >= self.params.act_at_tolerance:
+                    counted = f"{rate:.1f} Hz" if math.isfinite(rate) else "no rate"
+                    why = (f"{conn.name} {counted} on {scale} < {conn.freq_min:g} Hz for "
+                           f"{tracker.below_for(now):.1f} s of {conn.tolerance:g} s")
             if why:
                 violating.update((i, why) for i in ends if not self.ch.pinned[i])
         return violating
@@ -332,8 +329,7 @@ class DecisionEngine:
         for c in range(len(self.trackers)):
             if (self.ch.scale_names[self.assign[self.ch.conn_sub[c]]] == report.scale
                     and any(not self.ch.pinned[i] for i in self._remote_ends(c))
-                    and self._silence_spent(c, report, heard_only=self._settling(c, now))
-                    and (not self._settling(c, now) or self._handed_over(c, now))):
+                    and self._silence_judged(c, report, now)):
                 return True
         return False
 
@@ -345,6 +341,13 @@ class DecisionEngine:
         """An end of connection c moved less than startup_grace_s ago: it is not judged."""
         return any(now - self.moved_at.get(i, -math.inf) < self.params.startup_grace_s
                    for i in (self.ch.conn_pub[c], self.ch.conn_sub[c]))
+
+    def _silence_judged(self, c: int, report: Optional[ScaleReport], now: float) -> str:
+        """_silence_spent; inside the start-up grace only once the moved ends have handed over,
+        and only for a topic the agent has heard (it may have begun counting it just now)."""
+        if not self._settling(c, now):
+            return self._silence_spent(c, report)
+        return self._silence_spent(c, report, heard_only=True) if self._handed_over(c, now) else ""
 
     def _handed_over(self, c: int, now: float) -> bool:
         """Every end of connection c still settling has published from its new instance since:
@@ -372,7 +375,6 @@ class DecisionEngine:
             return ""
         silence = report.topic_silence.get(conn.topic, math.nan)
         if not silence >= share * conn.tolerance or (heard_only and math.isinf(silence)):
-            # heard_only: settling, an agent may have begun counting the topic just now
             return ""
         quiet = f"silent {silence:.2f} s" if math.isfinite(silence) else "never received"
         return (f"{conn.name} {quiet} on {report.scale}, over {100 * share:.0f} % of its "

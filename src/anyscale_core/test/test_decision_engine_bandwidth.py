@@ -140,6 +140,26 @@ def test_after_a_loss_nothing_moves_out_until_the_link_has_been_up_for_hold_afte
     assert [ev.node for ev in e.tick(reports(11.0), 11.0).events] == ["amcl"]
 
 
+def test_a_node_with_its_own_shorter_hold_moves_out_while_the_others_wait(testbed_ch):
+    e = DecisionEngine(testbed_ch, make_allocator("paper"),
+                       DecisionParams(bandwidth_hold_s=2.0, hysteresis_s=0.0,
+                                      hold_after_loss_s=20.0,
+                                      node_hold_after_loss_s={"amcl": 0.0}))
+    e.adopt_or_start(reports(0.0), 0.0)
+    for t in range(1, 5):
+        e.tick(reports(float(t)), float(t))
+    assert remote(e) == ["amcl", "ar_recognition"]
+    e.tick({"robot": reports(5.0)["robot"]}, 5.0)                 # the laptop goes silent
+    assert remote(e) == []
+    for t in (6.0, 7.0):                                          # back at 6 s
+        assert e.tick(reports(t), t).events == []                 # the bandwidth hold, 2 s
+    for t in range(8, 25):
+        e.tick(reports(float(t)), float(t))
+        assert remote(e) == ["amcl"], t           # AR waits 20 s from the loss last seen, 5 s
+    e.tick(reports(25.0), 25.0)
+    assert remote(e) == ["amcl", "ar_recognition"]
+
+
 def test_a_weak_link_is_not_a_loss_for_hold_after_loss(testbed_ch):
     e = DecisionEngine(testbed_ch, make_allocator("paper"),
                        DecisionParams(bandwidth_hold_s=2.0, hysteresis_s=0.0,

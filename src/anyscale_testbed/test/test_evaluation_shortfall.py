@@ -5,7 +5,7 @@ import pytest
 
 from anyscale_testbed.evaluation_figures import path_steps
 from anyscale_testbed.evaluation_shortfall import (HOLD, HYSTERESIS, OTHER, START, WEAK,
-                                                   shortfall)
+                                                   PolicyParams, shortfall)
 from anyscale_testbed.testbed_record import EventRecord, TestbedRecord, mapping_at
 
 AMCL_MBPS = 0.22
@@ -40,7 +40,7 @@ def test_each_second_left_goes_to_its_cause():
         navigation_status=[(10.0, "drive 0/4"), (150.0, "done 4/4")],
         events=[event(30.0, "migrate"), event(60.0, "migrate_back")])
     steps = path_steps(rec, AMCL_MBPS)
-    left = shortfall(rec, steps)
+    left = shortfall(rec, steps, PolicyParams(hold_after_loss_s=20.0))
     per_s = 1.0 - 0.2 / steps.out_mps        # saved per second driven home at 0.2 m/s
     expected = {START: 20.0, HYSTERESIS: 10.0, OTHER: 20.0 + 20.0, WEAK: 10.0, HOLD: 20.0}
     for cause, seconds in expected.items():

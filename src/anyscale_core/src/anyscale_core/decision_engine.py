@@ -7,7 +7,7 @@ actions for the agents. The rospy wrapper only converts messages and calls servi
 """
 from dataclasses import replace
 import math
-from typing import AbstractSet, Dict, List, Mapping, Optional, Tuple
+from typing import AbstractSet, Dict, FrozenSet, List, Mapping, Optional, Tuple
 
 import numpy as np
 
@@ -38,8 +38,7 @@ class DecisionEngine:
                          for c in ch.model.connections]
         self.load_filter: Dict[str, Tuple[float, float]] = {}   # scale -> (report time, load)
         self.backoff = [RestartBackoff(params.restart) for _ in ch.node_names]
-        self.link = LinkCapacity(BandwidthHold(params.bandwidth_hold_s, params.bandwidth_margin,
-                                               params.hold_after_loss_s),
+        self.link = LinkCapacity(BandwidthHold(params.bandwidth_hold_s, params.bandwidth_margin),
                                  params.bandwidth_stay_margin, params.weak_link_mbps)
         self.start_acked_at: Dict[int, float] = {}   # node -> when its latest start was answered
         # node -> the remote scale it ran on under the decision node before a restart (restored)
@@ -48,16 +47,17 @@ class DecisionEngine:
     # --- across a restart of the decision node (restart_state.py) -----------------------------
     def holds_last_s(self) -> float:
         """The longest hold a saved state can feed: older state holds nothing."""
-        return max(self.params.hysteresis_s, self.params.hold_after_loss_s)
+        return max(self.params.hysteresis_s, self.params.longest_hold_after_loss())
 
     def restart_state(self, now: float) -> RestartState:
         """What a decision node restarted after this one needs to keep its holds: the returns
-        still inside T, the latest loss still inside hold_after_loss_s, and the mapping."""
+        still inside T, the latest loss still inside a node's hold after a loss, and the
+        mapping."""
         back = {self.ch.node_names[i]: t for i, t in sorted(self.migrated_back_at.items())
                 if now - t < self.params.hysteresis_s}
         lost = self.link.hold.lost_at
         return RestartState(now, self.mapping(), back,
-                            lost if now - lost < self.params.hold_after_loss_s else None)
+                            lost if now - lost < self.params.longest_hold_after_loss() else None)
 
     def saved_state(self, wall_now: float, now: float) -> str:
         """restart_state as the text the rospy wrapper stores (wall-clock times)."""
@@ -84,7 +84,7 @@ class DecisionEngine:
         out = {self.ch.node_index(n): s for n, s in state.mapping.items()
                if n in self.ch.node_names and s in self.ch.scale_names and s != master}
         lost = state.link_lost_at
-        if lost is not None and not now - lost < self.params.hold_after_loss_s:
+        if lost is not None and not now - lost < self.params.longest_hold_after_loss():
             lost = None
         self.migrated_back_at.update(back)
         self.out_before_restart = out
@@ -148,7 +148,7 @@ class DecisionEngine:
             return TickResult(restarts + self._renewals(up), restart_events, state, [])
         violating = self._update_trackers(reports, now)
         ctx = AllocationContext(now, self.params.hysteresis_s, dict(self.migrated_back_at),
-                                violating)
+                                violating, self._held_after_loss(now))
         weak = self.link.is_weak(measured, now, streams)
         decision = self.allocator.step(self.ch, self.assign, state, ctx)
         actions, events = [], []
@@ -182,6 +182,16 @@ class DecisionEngine:
         events += restart_events
         return TickResult(actions, events, state,
                           [self.ch.node_names[i] for i in sorted(violating)])
+
+    def _held_after_loss(self, now: float) -> FrozenSet[int]:
+        """The nodes at home that the latest link loss still holds there
+        (DecisionParams.hold_after_loss): at the edge of coverage the link comes and goes, and
+        a node moved out on its first good seconds comes home again by a link-loss return; for
+        a node whose return comes close to its tolerance, that is the move to avoid."""
+        since = now - self.link.hold.lost_at
+        return frozenset(i for i, name in enumerate(self.ch.node_names)
+                         if self.assign[i] == self.ch.master
+                         and since < self.params.hold_after_loss(name))
 
     def output_seen(self, node: str, now: float):
         """The new instance of a moved `node` has published (the wrapper's handover watch saw

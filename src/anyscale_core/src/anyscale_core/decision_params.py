@@ -42,6 +42,21 @@ def read_params(get) -> NodeParams:
             raise ParamError(f"~{name}: expected a finite number >= {minimum:g}, got {value!r}")
         return value
 
+    def node_seconds(name):
+        """A dict of node name -> seconds (>= 0); {} if unset."""
+        value = get("~" + name, {})
+        if not isinstance(value, dict):
+            raise ParamError(f"~{name}: expected a dict of node name: seconds, got {value!r}")
+        out = {}
+        for node, seconds in value.items():
+            if not isinstance(node, str) or isinstance(seconds, bool) \
+                    or not isinstance(seconds, (int, float)) \
+                    or not (math.isfinite(seconds) and seconds >= 0):
+                raise ParamError(f"~{name}: expected node name: seconds >= 0, got "
+                                 f"{node!r}: {seconds!r}")
+            out[node] = float(seconds)
+        return out
+
     model = get("~model", None)
     if not isinstance(model, str) or not model:
         raise ParamError("~model: required (path of the system model YAML)")
@@ -59,7 +74,8 @@ def read_params(get) -> NodeParams:
                             bandwidth_margin=number("bandwidth_margin", 0.3),
                             bandwidth_stay_margin=number("bandwidth_stay_margin", 0.15),
                             weak_link_mbps=number("weak_link_mbps", 0.0),
-                            hold_after_loss_s=number("hold_after_loss_s", 0.0))
+                            hold_after_loss_s=number("hold_after_loss_s", 0.0),
+                            node_hold_after_loss_s=node_seconds("node_hold_after_loss_s"))
     for name in ("act_at_tolerance", "act_at_silence"):
         if getattr(engine, name) > 1.0:
             raise ParamError(f"~{name}: expected 0..1, got {getattr(engine, name):g}")
@@ -80,11 +96,16 @@ def read_params(get) -> NodeParams:
                       int(number("handover_messages", 3, 1)), control_nice)
 
 
-def prepare_decision(model_path: str, allocator_name: str):
+def prepare_decision(model_path: str, allocator_name: str,
+                     engine: DecisionParams = DecisionParams()):
     """The model, its characterisation and the allocator the decision node starts from, with no
     ROS involved (tested by fuzzing); raises only ModelError or ParamError, which main() turns
-    into one FATAL line."""
+    into one FATAL line. `engine`'s node names are checked against the model."""
     model = load_model(model_path)
+    unknown = sorted(set(engine.node_hold_after_loss_s) - {n.name for n in model.nodes})
+    if unknown:
+        raise ParamError(f"~node_hold_after_loss_s: {', '.join(unknown)}: no such node in "
+                         f"{model_path}")
     try:
         allocator = make_allocator(allocator_name)
     except ValueError as e:

@@ -58,7 +58,8 @@ MASTER_CALL_ERRORS = (OSError, http.client.HTTPException, xmlrpc.client.Error,
 class DecisionNode(AgentActions):
     def __init__(self, params: NodeParams):
         self.params = params
-        self.model, self.ch, allocator = prepare_decision(params.model, params.allocator)
+        self.model, self.ch, allocator = prepare_decision(params.model, params.allocator,
+                                                         params.engine)
         self.master = self.model.master.name
         self.engine = DecisionEngine(self.ch, allocator, params.engine, time.monotonic())
         self._restore_state()

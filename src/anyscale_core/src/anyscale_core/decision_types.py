@@ -28,9 +28,20 @@ class DecisionParams:
     # A link measured below this is about to be lost: it counts as carrying nothing, so nodes
     # come home while a handover can still cross it (0: off). See LinkCapacity.usable.
     weak_link_mbps: float = 0.0
-    # After a link loss, a move out also waits until the link has been up this long (0: only
-    # bandwidth_hold_s). See BandwidthHold.
+    # After a link loss, a node moves out only once the link has been up this long (0: only
+    # bandwidth_hold_s), unless node_hold_after_loss_s names the node. See hold_after_loss.
     hold_after_loss_s: float = 0.0
+    node_hold_after_loss_s: Mapping[str, float] = field(default_factory=dict)
+
+    def hold_after_loss(self, node: str) -> float:
+        """How long after a link loss `node` stays home: a node whose link-loss return fits
+        its tolerances with room to spare (measured, e.g. AMCL's) can move out on the link's
+        first good seconds, where one whose return comes close to its tolerance should wait
+        until the link has shown it stays."""
+        return self.node_hold_after_loss_s.get(node, self.hold_after_loss_s)
+
+    def longest_hold_after_loss(self) -> float:
+        return max([self.hold_after_loss_s, *self.node_hold_after_loss_s.values()])
 
 
 @dataclass(frozen=True)

@@ -13,15 +13,12 @@ STREAMS_SETTLE_S = 3.0
 class BandwidthHold:
     """The least bandwidth the link showed over the last hold_s, less a margin: what a move
     out may count on. 0 until the link has been watched that long, and after a loss: a link
-    that just came back has shown nothing yet. After a loss the link must also have stayed up
-    for hold_after_loss_s: at the edge of coverage it comes and goes, and a node moved out on
-    its first few good seconds comes home again by a link-loss return, the kind that strains
-    the tolerances."""
+    that just came back has shown nothing yet. It keeps the latest loss too, for the longer
+    hold after a loss of the nodes that need one (DecisionParams.hold_after_loss)."""
 
-    def __init__(self, hold_s: float, margin: float, hold_after_loss_s: float = 0.0):
+    def __init__(self, hold_s: float, margin: float):
         self.hold_s = hold_s
         self.margin = margin
-        self.hold_after_loss_s = hold_after_loss_s
         self._samples: deque = deque()      # (t, Mbit/s), 0 = link down or weak
         self._since: Optional[float] = None  # when watching began
         self._lost_at = -math.inf            # the latest time the link was seen down
@@ -47,8 +44,6 @@ class BandwidthHold:
 
     def admissible(self, t: float) -> float:
         if self._since is None or t - self._since < self.hold_s:
-            return 0.0
-        if t - self._lost_at < self.hold_after_loss_s:
             return 0.0
         held = min(m for _, m in self._samples)
         return held / (1.0 + self.margin)

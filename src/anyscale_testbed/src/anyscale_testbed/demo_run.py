@@ -125,7 +125,10 @@ def parse_args(argv, default_out: str):
     p.add_argument("--hysteresis", type=float, default=10.0, help="the paper's T in s (10)")
     p.add_argument("--hold-after-loss", type=float, default=None, metavar="S",
                    help="after a link loss, no move out until the link has been up this long "
-                        "(default: robot.launch's, 20)")
+                        "(default: robot.launch's, 20; AMCL's own: --amcl-hold-after-loss)")
+    p.add_argument("--amcl-hold-after-loss", type=float, default=None, metavar="S",
+                   help="AMCL's own hold after a link loss (default: robot.launch's, 0: only "
+                        "the bandwidth hold; 20 gives the rule of the evaluation of 2026-11-27)")
     p.add_argument("--model", default=None, help="system model (default: the nav demo's)")
     p.add_argument("--cold-start", action="store_true",
                    help="agents keep no warm standbys: every start imports anew (to compare)")
@@ -282,7 +285,7 @@ def launch_demo(session: TestbedSession, bed, args, model: str, start, goals, re
     """The demo's three launches on the bed: the world on the robot's side outside its CPU
     quota (it brings up the master unless `master_running`), robot.launch and laptop.launch.
     `args` are parse_args' (world, schedule, seed, duration, rviz, allocator, hysteresis,
-    hold_after_loss, cold_start); `respawn`: roslaunch starts the agents and the decision node
+    hold_after_loss, amcl_hold_after_loss, cold_start); `respawn`: roslaunch starts the agents and the decision node
     again when they end (the fault soak); `echo` gets each line of the world launch (default:
     the monitor's lines and errors to the console); `record_critical`: the monitor records the
     critical connections' topics too. Returns the world launch's process: the run ends with
@@ -310,7 +313,9 @@ def launch_demo(session: TestbedSession, bed, args, model: str, start, goals, re
         f"respawn:={str(respawn).lower()}"]
         + ([f"goals:={json.dumps(goals)}"] if goals else [])
         + ([f"hold_after_loss_s:={args.hold_after_loss}"]
-           if args.hold_after_loss is not None else []))
+           if args.hold_after_loss is not None else [])
+        + ([f"amcl_hold_after_loss_s:={args.amcl_hold_after_loss}"]
+           if args.amcl_hold_after_loss is not None else []))
     session.roslaunch("laptop", "laptop", [
         "anyscale_nav_demo", "laptop.launch", f"model:={model}", f"warm_start:={warm}",
         f"respawn:={str(respawn).lower()}"])

@@ -37,7 +37,8 @@ CAUSES = (WEAK, HOLD, HYSTERESIS, START, OTHER)
 class PolicyParams:
     """The decision node's parameters the causes are judged by (robot.launch's defaults)."""
     weak_link_mbps: float = 5.5
-    hold_after_loss_s: float = 20.0
+    # AMCL's own (robot.launch's amcl_hold_after_loss_s); 20 in the evaluation of 2026-11-27
+    hold_after_loss_s: float = 0.0
     hysteresis_s: float = 10.0
 
 

@@ -1,6 +1,6 @@
 """What every allocator takes and returns, and the scales a node may move to right now."""
 from dataclasses import dataclass, field
-from typing import List, Mapping
+from typing import AbstractSet, List, Mapping
 
 import numpy as np
 
@@ -16,10 +16,13 @@ class AllocationContext:
     migrated_back_at: Mapping[int, float] = field(default_factory=dict)  # node -> time (s)
     # node -> which of its connections spends its tolerance, and how (for the reason)
     violating: Mapping[int, str] = field(default_factory=dict)
+    # nodes the link lost less than their hold after a loss ago (DecisionParams.hold_after_loss)
+    held_after_loss: AbstractSet[int] = frozenset()
 
     def held_on_master(self, i: int) -> bool:
-        """Node i may not leave the master: it violates, or came back less than T ago."""
-        if i in self.violating:
+        """Node i may not leave the master: it violates, the link was lost less than its hold
+        after a loss ago, or it came back less than T ago."""
+        if i in self.violating or i in self.held_after_loss:
             return True
         t = self.migrated_back_at.get(i)
         return t is not None and self.now - t < self.hysteresis_s

@@ -1,9 +1,10 @@
 """The decision node's logic without ROS: agent reports in, start/stop/renew actions out.
 
-Each tick turns the latest report of every scale into the dynamic state (paper III-B-2), feeds
-the per-connection frequency/tolerance trackers, runs the allocator once (one iteration of
-Algorithm 1 per period, as the paper's loop sleeps between iterations) and turns its moves into
-actions for the agents. The rospy wrapper only converts messages and calls services.
+Each tick turns the latest report of every scale into the dynamic state (paper III-B-2), asks
+the connection judge which remote nodes spend a tolerance (connection_judge.py), runs the
+allocator once (one iteration of Algorithm 1 per period, as the paper's loop sleeps between
+iterations) and turns its moves into actions for the agents. The rospy wrapper only converts
+messages and calls services.
 """
 from dataclasses import replace
 import math
@@ -13,7 +14,8 @@ import numpy as np
 
 from .allocators import AllocationContext
 from .characterisation import Characterisation
-from .constraints import DynamicState, FrequencyToleranceTracker, required_bandwidth
+from .connection_judge import ConnectionJudge
+from .constraints import DynamicState, required_bandwidth
 from .cost import ObjectiveIntegrator, perf
 from .decision_types import (DecisionParams, Event, RenewLeases, ScaleReport, StartNode, StopNode,
                              TickResult)
@@ -30,12 +32,9 @@ class DecisionEngine:
         self.params = params
         self.assign = ch.initial_mapping()
         self.migrated_back_at: Dict[int, float] = {}
-        self.moved_at: Dict[int, float] = {}
-        self.output_seen_at: Dict[int, float] = {}   # a moved node's new instance published
         self.handoff: Dict[str, Mapping[str, float]] = {}
         self.objective = ObjectiveIntegrator(start_time, perf(ch, self.assign))
-        self.trackers = [FrequencyToleranceTracker(c.freq_min, c.tolerance)
-                         for c in ch.model.connections]
+        self.judge = ConnectionJudge(ch, params)
         self.load_filter: Dict[str, Tuple[float, float]] = {}   # scale -> (report time, load)
         self.backoff = [RestartBackoff(params.restart) for _ in ch.node_names]
         self.link = LinkCapacity(BandwidthHold(params.bandwidth_hold_s, params.bandwidth_margin),
@@ -125,7 +124,7 @@ class DecisionEngine:
                 events[-1] = replace(events[-1], reason=(
                     f"{events[-1].reason}; on {self.out_before_restart[i]} before the decision "
                     f"node restarted: home for {self.params.hysteresis_s:g} s"))
-            self.moved_at[i] = now
+            self.judge.moved(i, now)
         self.out_before_restart = {}
         self.objective.change(now, perf(self.ch, self.assign))
         return TickResult(actions, events, self.dynamic_state(reports, now), [])
@@ -146,7 +145,7 @@ class DecisionEngine:
         if not moves_allowed:
             restarts, restart_events = self._restarts(reports, up, now, starting)
             return TickResult(restarts + self._renewals(up), restart_events, state, [])
-        violating = self._update_trackers(reports, now)
+        violating = self.judge.violating(self.assign, reports, now)
         ctx = AllocationContext(now, self.params.hysteresis_s, dict(self.migrated_back_at),
                                 violating, self._held_after_loss(now))
         weak = self.link.is_weak(measured, now, streams)
@@ -171,7 +170,7 @@ class DecisionEngine:
                                 self._reason(move, measured, streams, weak)))
             if back:
                 self.migrated_back_at[move.node] = now
-            self.moved_at[move.node] = now
+            self.judge.moved(move.node, now)
         if decision.moves:
             self.link.mapping_changed(now, streams)
             self.assign = decision.assign.copy()
@@ -193,11 +192,16 @@ class DecisionEngine:
                          if self.assign[i] == self.ch.master
                          and since < self.params.hold_after_loss(name))
 
+    def silence_alarm(self, report: ScaleReport, now: float) -> bool:
+        """Whether `report` shows a judged connection silent for act_at_silence of its
+        tolerance (ConnectionJudge.silence_alarm): the wrapper then ticks at once."""
+        return self.judge.silence_alarm(self.assign, report, now)
+
     def output_seen(self, node: str, now: float):
         """The new instance of a moved `node` has published (the wrapper's handover watch saw
         it): from now its connections' silences are judged again, inside the start-up grace
-        (_settling)."""
-        self.output_seen_at[self.ch.node_index(node)] = now
+        (ConnectionJudge)."""
+        self.judge.output_seen(self.ch.node_index(node), now)
 
     def start_acknowledged(self, node: str, now: float):
         """The agent answered a start of `node`: reports received before now may still show the
@@ -212,7 +216,7 @@ class DecisionEngine:
             return None                 # moved again meanwhile: that decision stands
         self.assign[i] = self.ch.scale_index(source)
         self.migrated_back_at[i] = now
-        self.moved_at[i] = now
+        self.judge.moved(i, now)
         self.objective.change(now, perf(self.ch, self.assign))
         return Event("migrate_back" if self.assign[i] == self.ch.master else "migrate", node,
                      target, source, f"the instance on {target} did not publish in time")
@@ -225,7 +229,7 @@ class DecisionEngine:
             return None
         self.assign[i] = self.ch.master
         self.migrated_back_at[i] = now
-        self.moved_at[i] = now
+        self.judge.moved(i, now)
         self.objective.change(now, perf(self.ch, self.assign))
         return Event("migrate_back", node, scale, self.ch.scale_names[self.ch.master],
                      "start on the remote scale failed")
@@ -306,90 +310,6 @@ class DecisionEngine:
         self.load_filter[scale] = (at, value)
         return value
 
-    def _update_trackers(self, reports, now) -> Dict[int, str]:
-        """Feed each connection's rate as received where its subscriber runs; return the
-        remote nodes on connections that spent `act_at_tolerance` of their tolerance below
-        freq_min, or were silent for `act_at_silence` of it, each with why."""
-        violating = {}
-        for c, tracker in enumerate(self.trackers):
-            ends = self._remote_ends(c)
-            if not ends:
-                continue
-            conn = self.ch.model.connections[c]
-            scale = self.ch.scale_names[self.assign[self.ch.conn_sub[c]]]
-            report = reports.get(scale)
-            why = self._silence_judged(c, report, now)
-            if self._settling(c, now):
-                tracker.update(now, math.inf)      # settling after a move: rates not judged
-            else:
-                rate = report.topic_rates.get(conn.topic, math.nan) if report else math.nan
-                tracker.update(now, rate)
-                if tracker.violated(now) or \
-                        tracker.used_fraction(now) >= self.params.act_at_tolerance:
-                    counted = f"{rate:.1f} Hz" if math.isfinite(rate) else "no rate"
-                    why = (f"{conn.name} {counted} on {scale} < {conn.freq_min:g} Hz for "
-                           f"{tracker.below_for(now):.1f} s of {conn.tolerance:g} s")
-            if why:
-                violating.update((i, why) for i in ends if not self.ch.pinned[i])
-        return violating
-
-    def silence_alarm(self, report: ScaleReport, now: float) -> bool:
-        """Whether `report` shows a judged connection subscribed on its scale silent for
-        act_at_silence of its tolerance: the wrapper then ticks at once, not a period later."""
-        for c in range(len(self.trackers)):
-            if (self.ch.scale_names[self.assign[self.ch.conn_sub[c]]] == report.scale
-                    and any(not self.ch.pinned[i] for i in self._remote_ends(c))
-                    and self._silence_judged(c, report, now)):
-                return True
-        return False
-
-    def _remote_ends(self, c: int) -> List[int]:
-        return [i for i in (self.ch.conn_pub[c], self.ch.conn_sub[c])
-                if self.assign[i] != self.ch.master]
-
-    def _settling(self, c: int, now: float) -> bool:
-        """An end of connection c moved less than startup_grace_s ago: it is not judged."""
-        return any(now - self.moved_at.get(i, -math.inf) < self.params.startup_grace_s
-                   for i in (self.ch.conn_pub[c], self.ch.conn_sub[c]))
-
-    def _silence_judged(self, c: int, report: Optional[ScaleReport], now: float) -> str:
-        """_silence_spent; inside the start-up grace only once the moved ends have handed over,
-        and only for a topic the agent has heard (it may have begun counting it just now)."""
-        if not self._settling(c, now):
-            return self._silence_spent(c, report)
-        return self._silence_spent(c, report, heard_only=True) if self._handed_over(c, now) else ""
-
-    def _handed_over(self, c: int, now: float) -> bool:
-        """Every end of connection c still settling has published from its new instance since:
-        the grace covers a start, and the old instance publishes until the new one has (make
-        before break), so a silence after that is the output's own. Within the grace it was
-        not judged at all: AMCL moved out onto a link that AR's camera then saturated, its
-        laptop instance published for 1.4 s, lost its lease behind the full link, and
-        /amcl_pose stayed silent 5.9 s (Δ 2 s), judged only once the 8 s grace ran out."""
-        settling = [i for i in (self.ch.conn_pub[c], self.ch.conn_sub[c])
-                    if now - self.moved_at.get(i, -math.inf) < self.params.startup_grace_s]
-        return all(self.output_seen_at.get(i, -math.inf) >= self.moved_at[i] for i in settling)
-
-    def _silence_spent(self, c: int, report: Optional[ScaleReport],
-                       heard_only: bool = False) -> str:
-        """Why connection c must come home for its silence ('' if it need not). The checked
-        promise is that no judged connection is silent for longer than its tolerance, and a
-        rate over a window falls below freq_min only well into a silence; a return takes
-        0.2-0.5 s to its first message on the robot, the report and the tick up to 0.45 s more.
-        So the node comes home once the silence has used act_at_silence of the tolerance: a
-        link step to 3 Mbit/s under AR's 6 Mbit/s camera stream left /ar_markers silent 1.06 s
-        (Δ 1 s) while the bandwidth probe took 2.2 s to read the drop (fault soak, CI)."""
-        conn = self.ch.model.connections[c]
-        share = self.params.act_at_silence
-        if report is None or share <= 0 or conn.tolerance <= 0:
-            return ""
-        silence = report.topic_silence.get(conn.topic, math.nan)
-        if not silence >= share * conn.tolerance or (heard_only and math.isinf(silence)):
-            return ""
-        quiet = f"silent {silence:.2f} s" if math.isfinite(silence) else "never received"
-        return (f"{conn.name} {quiet} on {report.scale}, over {100 * share:.0f} % of its "
-                f"{conn.tolerance:g} s tolerance")
-
     def _restarts(self, reports, up, now, starting,
                   moved: AbstractSet[int] = frozenset()) -> Tuple[List[StartNode], List[Event]]:
         """Nodes whose process ended unasked on the scale they are assigned to, started there
@@ -410,7 +330,7 @@ class DecisionEngine:
                     or not self.backoff[i].due(now)):
                 continue
             self.backoff[i].restarted(now)
-            self.moved_at[i] = now
+            self.judge.moved(i, now)
             if k != self.ch.master and self.ch.model.node(name).launch.pause_at_home:
                 actions.append(self._start(i, self.ch.master))
                 events.append(self._crashed_out_comes_home(i, scale, report.ended[name], now))

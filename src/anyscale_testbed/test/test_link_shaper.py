@@ -182,6 +182,9 @@ def test_node_params_defaults_and_layout():
     assert p.mode == "coverage" and p.access_point_xy == (24.0, 34.5)
     assert p.rate_hz == 5.0 and p.burst_kbit == 32 and p.dry_run is False and p.seed == 0
     assert read_shaper_params(getter(access_point_x=1, access_point_y=1, seed=3)).seed == 3
+    assert p.map_file == ""
+    assert read_shaper_params(getter(access_point_x=1, access_point_y=1,
+                                     map_file="/m.yaml")).map_file == "/m.yaml"
     assert (p.layout.robot.namespace, p.layout.robot.interface) == ("anyscale_robot",
                                                                     "asv_robot")
     assert (p.layout.laptop.namespace, p.layout.laptop.interface) == ("anyscale_laptop",
@@ -204,6 +207,8 @@ def test_node_params_defaults_and_layout():
     (dict(access_point_x=1, access_point_y=1, seed=-1), r"~seed: expected an integer >= 0"),
     (dict(access_point_x=1, access_point_y=1, seed=1.5), r"~seed: expected an integer >= 0"),
     (dict(mode="schedule", schedule=[[0, 3]], seed=2), r"~seed: varies the coverage model"),
+    (dict(access_point_x=1, access_point_y=1, map_file=3), r"~map_file: expected the path"),
+    (dict(mode="schedule", schedule=[[0, 3]], map_file="/m.yaml"), r"~map_file: the coverage"),
 ])
 def test_bad_node_params_name_the_parameter(params, message):
     with pytest.raises(ValueError, match=message):

@@ -236,6 +236,7 @@ class ShaperParams:
     burst_kbit: int
     dry_run: bool
     seed: int = 0       # coverage mode: 0 = the deterministic model, else wifi_variation's
+    map_file: str = ""  # coverage mode: the floor plan's map YAML; "" = from /map
 
 
 def read_shaper_params(get: Callable[[str, object], object]) -> ShaperParams:
@@ -287,5 +288,11 @@ def read_shaper_params(get: Callable[[str, object], object]) -> ShaperParams:
         laptop=replace(default.laptop, namespace=name_param("~laptop_namespace",
                                                             default.laptop.namespace),
                        interface=name_param("~laptop_interface", default.laptop.interface)))
+    map_file = get("~map_file", "")
+    if not isinstance(map_file, str):
+        raise ValueError(f"~map_file: expected the path of a map YAML, got {map_file!r}")
+    if map_file and mode != "coverage":
+        raise ValueError(f"~map_file: the coverage model's floor plan; it has no meaning in "
+                         f"{mode} mode")
     return ShaperParams(mode, access_point, schedule, number("~rate_hz", 5.0, 0.0, True),
-                        layout, burst, dry_run, seed)
+                        layout, burst, dry_run, seed, map_file)

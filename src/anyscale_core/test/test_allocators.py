@@ -59,6 +59,19 @@ def test_paper_hysteresis_holds_a_node_back_for_t(testbed_ch):
     assert [testbed_ch.node_names[m.node] for m in d.moves] == ["amcl"]
 
 
+@pytest.mark.parametrize("name", sorted(ALLOCATORS))
+def test_a_node_held_after_a_loss_stays_home_through_a_whole_decision(testbed_ch, name):
+    """AMCL (out) must come home and AR is held home after a loss: no allocator moves AR out,
+    also not paper_local's decide(), which steps on with a context of its own."""
+    amcl, ar = testbed_ch.node_index("amcl"), testbed_ch.node_index("ar_recognition")
+    amcl_out = testbed_ch.initial_mapping()
+    amcl_out[amcl] = testbed_ch.scale_index("laptop")
+    ctx = AllocationContext(now=10.0, hysteresis_s=10.0, violating={amcl: "silent"},
+                            held_after_loss=frozenset({ar}))
+    d = make_allocator(name).decide(testbed_ch, amcl_out, GOOD, ctx)
+    assert (d.assign == testbed_ch.master).all(), [testbed_ch.node_names[m.node] for m in d.moves]
+
+
 def test_paper_violating_connection_sends_node_back(testbed_ch):
     both = PaperAllocator().decide(testbed_ch, testbed_ch.initial_mapping(), GOOD,
                                    AllocationContext()).assign

@@ -8,6 +8,7 @@ Where the published pseudo-code is ambiguous this follows its evident intent, as
   no else branch and would spin on it);
 - the bandwidth test is made on the mapping as it would be after the move.
 """
+from dataclasses import replace
 from typing import List, Tuple
 
 import numpy as np
@@ -43,9 +44,9 @@ class PaperAllocator:
             current = d.assign
             back = {m.node for m in d.moves if m.target == ch.master}
             if back:  # what just came back stays back for T (and within this decision)
-                ctx = AllocationContext(ctx.now, max(ctx.hysteresis_s, 1e-9),
-                                        {**ctx.migrated_back_at, **{i: ctx.now for i in back}},
-                                        ctx.violating)
+                ctx = replace(ctx, hysteresis_s=max(ctx.hysteresis_s, 1e-9),
+                              migrated_back_at={**ctx.migrated_back_at,
+                                                **{i: ctx.now for i in back}})
         return Decision(current, moves)
 
     def _migrate_back(self, ch, assign, state, ctx):

@@ -63,6 +63,7 @@ def main() -> int:
     totals = {}
     for name, policy in POLICIES.items():
         results = [replay_hold(rec.bandwidth, policy, rules) for rec in records.values()]
+        # summed over the runs: the shares weigh each run by the time its link carried the node
         totals[name] = (sum(r.carried_s for r in results), sum(r.out_s for r in results),
                         sum(r.moves_out for r in results), sum(r.ended_soon for r in results))
     runs = len(records)

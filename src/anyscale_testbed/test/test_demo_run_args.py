@@ -2,7 +2,7 @@
 --normalise-cpu and the calibration's reference_cpu_ms it needs."""
 import pytest
 
-from anyscale_testbed.demo_run import parse_args
+from anyscale_testbed.demo_run import hold_args, parse_args
 
 
 def test_seed_defaults_to_the_deterministic_model_and_passes_through():
@@ -165,3 +165,10 @@ def test_loops_repeat_the_loop_from_where_the_robot_starts():
     assert twice[-1][:3] == start             # the world's last goal is its start
     at1, loop = world_start("small_loop", 1, 3)
     assert len(loop) == 3 * (len(twice) // 2) and loop[-1][:3] == at1
+
+
+def test_the_holds_after_a_loss_reach_robot_launch_only_when_given():
+    assert hold_args(parse_args([], "out")) == []
+    assert hold_args(parse_args(["--hold-after-loss", "30", "--amcl-hold-after-loss", "20"],
+                                "out")) == ["hold_after_loss_s:=30.0",
+                                            "node_hold_after_loss_s:={amcl: 20.0}"]

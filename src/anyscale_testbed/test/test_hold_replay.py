@@ -44,6 +44,10 @@ def test_a_weak_link_brings_the_node_home_but_is_no_loss():
     r = replay_hold(trace, fixed_hold(60.0), ReplayRules(hysteresis_s=0.0))
     assert r.moves_out == 2 and r.ended_soon == 0            # out again after 5 s of good link
     assert r.carried_s == pytest.approx(60.0, abs=0.3)
+    # a planned return soon after the move: not a link-loss return
+    soon = replay_hold(link((8, 10.0), (1, 4.5), (10, 10.0)), fixed_hold(0.0))
+    assert soon.moves_out == 2 and soon.ended_soon == 0       # out at 5 s, back at 8, out at 18
+    assert replay_hold([], fixed_hold(0.0)).moves_out == 0
 
 
 def test_the_doubling_hold_is_short_after_a_clean_loss_and_grows_with_repeated_ones():

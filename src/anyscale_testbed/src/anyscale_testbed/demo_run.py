@@ -20,6 +20,7 @@ import json
 import os
 import signal
 import sys
+from typing import List
 
 import yaml
 
@@ -279,17 +280,27 @@ def normaliser_state(normaliser: CpuNormaliser) -> str:
             f"CPU ms (calibrated at {normaliser.reference_cpu_ms:g} ms)")
 
 
+def hold_args(args) -> List[str]:
+    """robot.launch's holds after a link loss that the run's options set (none: its own)."""
+    out = []
+    if args.hold_after_loss is not None:
+        out.append(f"hold_after_loss_s:={args.hold_after_loss}")
+    if args.amcl_hold_after_loss is not None:
+        out.append(f"node_hold_after_loss_s:={{amcl: {args.amcl_hold_after_loss}}}")
+    return out
+
+
 def launch_demo(session: TestbedSession, bed, args, model: str, start, goals, record: str,
                 run_dir: str, link: str, master_running: bool = False, respawn: bool = False,
                 echo=None, record_critical: bool = False):
     """The demo's three launches on the bed: the world on the robot's side outside its CPU
     quota (it brings up the master unless `master_running`), robot.launch and laptop.launch.
     `args` are parse_args' (world, schedule, seed, duration, rviz, allocator, hysteresis,
-    hold_after_loss, amcl_hold_after_loss, cold_start); `respawn`: roslaunch starts the agents and the decision node
-    again when they end (the fault soak); `echo` gets each line of the world launch (default:
-    the monitor's lines and errors to the console); `record_critical`: the monitor records the
-    critical connections' topics too. Returns the world launch's process: the run ends with
-    it."""
+    hold_after_loss, amcl_hold_after_loss, cold_start); `respawn`: roslaunch starts the agents
+    and the decision node again when they end (the fault soak); `echo` gets each line of the
+    world launch (default: the monitor's lines and errors to the console); `record_critical`:
+    the monitor records the critical connections' topics too. Returns the world launch's
+    process: the run ends with it."""
     x, y, yaw = start
     warm = str(not args.cold_start).lower()
     world = session.roslaunch(
@@ -311,11 +322,7 @@ def launch_demo(session: TestbedSession, bed, args, model: str, start, goals, re
         f"allocator:={args.allocator}", f"hysteresis_s:={args.hysteresis}",
         f"uplink_interface:={bed.uplink_interface('robot')}", f"warm_start:={warm}",
         f"respawn:={str(respawn).lower()}"]
-        + ([f"goals:={json.dumps(goals)}"] if goals else [])
-        + ([f"hold_after_loss_s:={args.hold_after_loss}"]
-           if args.hold_after_loss is not None else [])
-        + ([f"amcl_hold_after_loss_s:={args.amcl_hold_after_loss}"]
-           if args.amcl_hold_after_loss is not None else []))
+        + ([f"goals:={json.dumps(goals)}"] if goals else []) + hold_args(args))
     session.roslaunch("laptop", "laptop", [
         "anyscale_nav_demo", "laptop.launch", f"model:={model}", f"warm_start:={warm}",
         f"respawn:={str(respawn).lower()}"])

@@ -45,7 +45,7 @@ class ReplayResult:
     carried_s: float      # time the link was at or above weak_link_mbps
     out_s: float          # time the node was out
     moves_out: int
-    ended_soon: int       # moves out ended by the link within ended_soon_s
+    ended_soon: int       # moves out a loss ended within ended_soon_s (link-loss returns)
 
     @property
     def out_share(self) -> float:
@@ -54,7 +54,10 @@ class ReplayResult:
 
 def replay_hold(bandwidth: Sequence[Tuple[float, float]], policy: HoldPolicy,
                 rules: ReplayRules = ReplayRules()) -> ReplayResult:
-    """The node under `policy` on a recorded link: (t, Mbit/s) samples in time order, 0 = down."""
+    """The node under `policy` on a recorded link: (t, Mbit/s) samples in time order, 0 = down.
+    A return on a weak link that is not lost is planned (make before break) and not counted."""
+    if not bandwidth:
+        return ReplayResult(0.0, 0.0, 0, 0)
     carried = out_s = 0.0
     moves = soon = 0
     losses: List[float] = []
@@ -71,7 +74,7 @@ def replay_hold(bandwidth: Sequence[Tuple[float, float]], policy: HoldPolicy,
             good_since = None
             if out:
                 out, back_at = False, t
-                soon += t - moved_at < rules.ended_soon_s
+                soon += mbps <= 0 and t - moved_at < rules.ended_soon_s
         else:
             good_since = t if good_since is None else good_since
             if (not out and t - good_since >= rules.bandwidth_hold_s

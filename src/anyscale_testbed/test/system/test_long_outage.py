@@ -12,7 +12,7 @@ the move it waits for):
                       office floor AMCL first moved out at 17 s)
     90 s  27 Mbit/s   AMCL moves out again once the link has shown its bandwidth for
                       robot.launch's bandwidth_hold_s (5 s; AMCL's own hold after a loss,
-                      amcl_hold_after_loss_s, is 0), and not before; AR recognition waits for
+                      robot.launch's node_hold_after_loss_s, is 0), and not before; AR recognition waits for
                       hold_after_loss_s (20 s)"""
 import glob
 import os

@@ -40,10 +40,19 @@ def test_each_second_left_goes_to_its_cause():
         navigation_status=[(10.0, "drive 0/4"), (150.0, "done 4/4")],
         events=[event(30.0, "migrate"), event(60.0, "migrate_back")])
     steps = path_steps(rec, AMCL_MBPS)
-    left = shortfall(rec, steps, PolicyParams(hold_after_loss_s=20.0))
+    left = shortfall(rec, steps)
     per_s = 1.0 - 0.2 / steps.out_mps        # saved per second driven home at 0.2 m/s
     expected = {START: 20.0, HYSTERESIS: 10.0, OTHER: 20.0 + 20.0, WEAK: 10.0, HOLD: 20.0}
     for cause, seconds in expected.items():
         assert left.by_cause[cause] == pytest.approx(seconds * per_s, abs=0.06), cause
     # 30-32 s mapped out but driven at 0.2 m/s; 32-34 s already at 0.4 m/s: nothing.
     assert left.moving_s == pytest.approx(2.0 * per_s, abs=0.06)
+
+
+def test_the_causes_are_judged_by_the_runs_own_parameters_where_the_record_keeps_them():
+    old = TestbedRecord()
+    assert PolicyParams.of_record(old) == PolicyParams(5.5, 20.0, 10.0)
+    new = TestbedRecord(decision_params={"hold_after_loss_s": 20.0, "hysteresis_s": 15,
+                                         "node_hold_after_loss_s": {"amcl": 0.0}})
+    assert PolicyParams.of_record(new) == PolicyParams(5.5, 0.0, 15.0)
+    assert PolicyParams.of_record(new, "ar_recognition").hold_after_loss_s == 20.0

@@ -18,7 +18,7 @@ The thresholds are robot.launch's defaults, which the evaluation runs with. `ste
 evaluation_figures.PathSteps."""
 from dataclasses import dataclass, field
 import math
-from typing import TYPE_CHECKING, Dict, List
+from typing import TYPE_CHECKING, Dict, List, Optional
 
 import numpy as np
 
@@ -35,11 +35,23 @@ CAUSES = (WEAK, HOLD, HYSTERESIS, START, OTHER)
 
 @dataclass(frozen=True)
 class PolicyParams:
-    """The decision node's parameters the causes are judged by (robot.launch's defaults)."""
+    """The decision node's parameters the causes are judged by; the defaults are robot.launch's
+    of the runs recorded before records kept them (AMCL then held 20 s after a loss too)."""
     weak_link_mbps: float = 5.5
-    # AMCL's own (robot.launch's amcl_hold_after_loss_s); 20 in the evaluation of 2026-11-27
-    hold_after_loss_s: float = 0.0
+    hold_after_loss_s: float = 20.0     # the judged node's own
     hysteresis_s: float = 10.0
+
+    @staticmethod
+    def of_record(rec: TestbedRecord, node: str = "amcl") -> "PolicyParams":
+        """The parameters the run's decision node had (TestbedRecord.decision_params), each
+        missing one the default."""
+        p, default = rec.decision_params, PolicyParams()
+        hold = p.get("hold_after_loss_s", default.hold_after_loss_s)
+        own = p.get("node_hold_after_loss_s")
+        if isinstance(own, dict) and node in own:
+            hold = own[node]
+        return PolicyParams(float(p.get("weak_link_mbps", default.weak_link_mbps)), float(hold),
+                            float(p.get("hysteresis_s", default.hysteresis_s)))
 
 
 @dataclass(frozen=True)
@@ -84,8 +96,10 @@ def step_causes(rec: TestbedRecord, steps: "PathSteps", params: PolicyParams,
     return causes
 
 
-def shortfall(rec: TestbedRecord, steps: "PathSteps", params: PolicyParams = PolicyParams(),
+def shortfall(rec: TestbedRecord, steps: "PathSteps", params: Optional[PolicyParams] = None,
               node: str = "amcl") -> Shortfall:
+    """params: the record's (PolicyParams.of_record) unless given."""
+    params = params or PolicyParams.of_record(rec, node)
     saved = steps.saved_by_moving_out()
     causes = np.array(step_causes(rec, steps, params, node))
     by_cause = {c: float(saved[causes == c].sum()) for c in CAUSES}

@@ -29,7 +29,8 @@ from anyscale_core.model_loader import load_model
 from anyscale_core.ros_convert import EVENT_NAMES
 
 from .testbed_figures import colour_violations, format_summary, tolerance_violations
-from .testbed_record import EventRecord, ProcessSample, TestbedRecord, save_record
+from .testbed_record import (DECISION_PARAMS, EventRecord, ProcessSample, TestbedRecord,
+                             save_record)
 
 
 # python_standby's comm from its exec until it renames itself, and while it waits.
@@ -94,6 +95,7 @@ class TestbedMonitor:
         self.exit_when_done = bool(rospy.get_param("~exit_when_done", True))
         self.rec = TestbedRecord(started_wall=time.time(), world=rospy.get_param("~world", ""),
                                  link=rospy.get_param("~link", ""))
+        self.decision_params_read = False
         self.lock = threading.Lock()
         self.link_up = True
         self.markers = set()        # ids of the AR markers recognised so far
@@ -191,6 +193,9 @@ class TestbedMonitor:
 
     def _on_mapping(self, msg):
         mapping = {a.node: a.scale for a in msg.assignments}
+        if not self.decision_params_read:
+            self.decision_params_read = True
+            self._keep_decision_params(msg._connection_header.get("callerid", ""))
         with self.lock:
             before = self.rec.mappings[-1][1] if self.rec.mappings else None
             self.rec.mappings.append((self.now(), mapping, msg.perf, msg.objective))
@@ -199,6 +204,17 @@ class TestbedMonitor:
             say(f"t={self.now():6.1f} s  mapping: " +
                 ("all on " + self.model.master.name if not off else
                  ", ".join(f"{n}@{mapping[n]}" for n in off)) + f"  (Perf {msg.perf:.0f})")
+
+    def _keep_decision_params(self, decision_node: str):
+        """The decision node's parameters the figures are judged by, once (a master call)."""
+        try:
+            params = rospy.get_param(decision_node, {}) if decision_node else {}
+        except (rospy.ROSException, KeyError, OSError) as e:
+            rospy.logwarn("testbed monitor: %s's parameters unreadable: %s", decision_node, e)
+            return
+        kept = {k: params[k] for k in DECISION_PARAMS if isinstance(params, dict) and k in params}
+        with self.lock:
+            self.rec.decision_params = kept
 
     def _on_event(self, msg):
         e = EventRecord(self.now(), EVENT_NAMES.get(msg.kind, str(msg.kind)), msg.node,

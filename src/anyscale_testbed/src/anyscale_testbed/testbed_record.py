@@ -8,6 +8,11 @@ import os
 from typing import Dict, List, Optional, Sequence, Tuple
 
 
+# The decision node's private parameters a record keeps (evaluation_shortfall judges by them).
+DECISION_PARAMS = ("hysteresis_s", "bandwidth_hold_s", "weak_link_mbps", "hold_after_loss_s",
+                   "node_hold_after_loss_s")
+
+
 @dataclass
 class EventRecord:
     t: float                # monitor clock (s since the run started) when it was received
@@ -85,6 +90,9 @@ class TestbedRecord:
     # run_testbed.py was stopped (Ctrl-C, SIGTERM) before the run ended by itself: the record
     # holds what ran until then, and no bench resumes from it (bench_runs.latest_record).
     interrupted: bool = False
+    # The decision node's parameters the run's figures are judged by (DECISION_PARAMS, read
+    # from the parameter server when its first mapping came); empty in older records.
+    decision_params: Dict[str, object] = field(default_factory=dict)
 
     def save(self, path: str):
         with open(path, "w") as f:

@@ -9,7 +9,8 @@ import pytest
 import yaml
 
 from anyscale_testbed.link_shaper import (CoverageGrid, LinkSetting, SettingTracker, apply_setting,
-                                          coverage_grid, coverage_model_from_grid, coverage_shares,
+                                          coverage_grid, coverage_model_from_grid,
+                                          coverage_model_from_map_file, coverage_shares,
                                           leg_clear_on, link_setting_for, loop_corners,
                                           parse_schedule, path_points, read_shaper_params,
                                           setting_commands)
@@ -274,3 +275,21 @@ def test_small_loop_access_point_covers_about_half_the_loop_enough_for_amcl_only
     assert wifi["mode"] == "coverage"
     assert corridors["covered"] == pytest.approx(0.471, abs=0.0005)   # quoted in the config
     assert corridors[">=3"] == corridors["covered"] and corridors[">=12"] == 0.0
+
+
+def test_the_coverage_model_from_the_map_file_is_the_one_from_the_map_topic(tmp_path):
+    path = os.path.join(NAV_DEMO, "maps", "office_floor.yaml")
+    occ = load_map(path)
+    from_file = coverage_model_from_map_file(path, (24.0, 34.5))
+    from_topic = coverage_model_from_grid(occ.width, occ.height, occ.resolution, occ.origin[0],
+                                          occ.origin[1], occ.data.ravel().tolist(), (24.0, 34.5))
+    for x, y in ((7.4, 5.9), (24.0, 33.0), (30.0, 20.0)):
+        assert from_file.bandwidth_at(x, y) == from_topic.bandwidth_at(x, y)
+    with pytest.raises(ValueError, match="nowhere.yaml"):
+        coverage_model_from_map_file(str(tmp_path / "nowhere.yaml"), (0.0, 0.0))
+    rotated = tmp_path / "rotated.yaml"
+    rotated.write_text(open(path).read().replace("image: ", "image: " + os.path.dirname(path)
+                                                 + "/").replace("origin: [0.0, 0.0, 0.0]",
+                                                                "origin: [0.0, 0.0, 0.5]"))
+    with pytest.raises(ValueError, match="rotated"):
+        coverage_model_from_map_file(str(rotated), (0.0, 0.0))

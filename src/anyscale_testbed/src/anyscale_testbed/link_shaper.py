@@ -12,6 +12,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from anyscale_nav_demo.occupancy_map import MapError, load_map
 from anyscale_testbed.two_scale_testbed import (TwoScaleLayout, link_commands, run,
                                                 shape_commands)
 from anyscale_testbed.wifi_link_model import (CoverageModel, RadioParams, ScriptedSchedule,
@@ -116,6 +117,21 @@ def coverage_model_from_grid(width: int, height: int, resolution: float, origin_
     return CoverageModel(cells >= OCCUPIED_THRESHOLD, float(resolution),
                          (float(origin_x), float(origin_y)),
                          (float(access_point_xy[0]), float(access_point_xy[1])), radio)
+
+
+def coverage_model_from_map_file(path: str, access_point_xy: Tuple[float, float],
+                                 radio: RadioParams = RadioParams()) -> CoverageModel:
+    """A CoverageModel from a map_server YAML (the floor plan the robot's map_server serves);
+    ValueError names the file and what is wrong with it."""
+    try:
+        occ = load_map(path)
+    except (MapError, OSError) as e:
+        raise ValueError(str(e)) from None
+    if abs(occ.origin[2]) > 1e-6:
+        raise ValueError(f"{path}: origin is rotated (yaw {occ.origin[2]:.3f} rad); the coverage "
+                         f"model needs an axis-aligned map")
+    return coverage_model_from_grid(occ.width, occ.height, occ.resolution, occ.origin[0],
+                                    occ.origin[1], occ.data.ravel(), access_point_xy, radio)
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """The decision engine and the link's bandwidth: a move out only onto a link that has held the
 streams plus a margin (bandwidth_hold_s, bandwidth_margin), a node out staying with the smaller
 stay margin, a link not measured yet or just back letting nothing out, weak_link_mbps, and the
-hold after a loss (hold_after_loss_s)."""
+hold after a loss (hold_after_loss_s, and a node's own: node_hold_after_loss_s)."""
 import math
 
 import pytest
@@ -156,6 +156,7 @@ def test_a_node_with_its_own_shorter_hold_moves_out_while_the_others_wait(testbe
     for t in range(8, 25):
         e.tick(reports(float(t)), float(t))
         assert remote(e) == ["amcl"], t           # AR waits 20 s from the loss last seen, 5 s
+    assert e.hold_after_loss_left(24.5) == {"ar_recognition": 0.5}
     e.tick(reports(25.0), 25.0)
     assert remote(e) == ["amcl", "ar_recognition"]
 

@@ -1,6 +1,6 @@
 """A restarted decision node keeps the holds of the one before it (restart_state.py): a node
-brought home is not moved out again for T, and after a link loss nothing moves out before the
-link has been up for hold_after_loss_s, although the new engine has seen the link good for its
+brought home is not moved out again for T, and after a link loss no node moves out before the
+link has been up for its hold after a loss, although the new engine has seen the link good for its
 bandwidth hold. State older than those holds, and state that cannot be read, change nothing.
 
 Each engine runs on a clock of its own, as each process's monotonic clock does; the wall clock
@@ -104,6 +104,18 @@ def test_a_restarted_engine_keeps_the_hold_after_a_loss(testbed_ch):
     assert readable and "link lost 2.0 s ago" in line
     # Lost last at 5 s: nothing out before 25 s, though the link is good from 6 s.
     assert first_move_out(e, 8.0, 40.0) == 25.0
+
+
+def test_a_restarted_engine_keeps_each_nodes_own_hold_after_a_loss(testbed_ch):
+    params = DecisionParams(bandwidth_hold_s=5.0, hysteresis_s=0.0, hold_after_loss_s=20.0,
+                            node_hold_after_loss_s={"amcl": 0.0}, startup_grace_s=0.0)
+    saved = brought_home_at_5(testbed_ch, dataclasses.replace(params, bandwidth_hold_s=0.0))
+    e, (readable, line) = restarted(testbed_ch, params, saved, 7.0)
+    assert readable and "link lost 2.0 s ago" in line
+    # AMCL after the new engine's bandwidth hold (the link watched from its first tick, 8 s);
+    # AR not before 25 s.
+    assert first_move_out(e, 8.0, 40.0) == 13.0 and remote(e) == ["amcl"]
+    assert first_move_out(e, 12.5, 40.0) == 25.0 and remote(e) == ["amcl", "ar_recognition"]
 
 
 def test_a_node_whose_lease_ran_out_during_the_restart_is_held_home_for_T(testbed_ch):

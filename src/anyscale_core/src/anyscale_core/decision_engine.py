@@ -182,15 +182,20 @@ class DecisionEngine:
         return TickResult(actions, events, state,
                           [self.ch.node_names[i] for i in sorted(violating)])
 
-    def _held_after_loss(self, now: float) -> FrozenSet[int]:
-        """The nodes at home that the latest link loss still holds there
+    def hold_after_loss_left(self, now: float) -> Dict[str, float]:
+        """The nodes at home that the latest link loss still holds there, with the seconds left
         (DecisionParams.hold_after_loss): at the edge of coverage the link comes and goes, and
         a node moved out on its first good seconds comes home again by a link-loss return; for
-        a node whose return comes close to its tolerance, that is the move to avoid."""
+        a node whose return comes close to its tolerance, that is the move to avoid. A node
+        out is not held (it would be brought home)."""
         since = now - self.link.hold.lost_at
-        return frozenset(i for i, name in enumerate(self.ch.node_names)
-                         if self.assign[i] == self.ch.master
-                         and since < self.params.hold_after_loss(name))
+        return {name: self.params.hold_after_loss(name) - since
+                for i, name in enumerate(self.ch.node_names)
+                if self.assign[i] == self.ch.master and not self.ch.pinned[i]
+                and since < self.params.hold_after_loss(name)}
+
+    def _held_after_loss(self, now: float) -> FrozenSet[int]:
+        return frozenset(self.ch.node_index(n) for n in self.hold_after_loss_left(now))
 
     def silence_alarm(self, report: ScaleReport, now: float) -> bool:
         """Whether `report` shows a judged connection silent for act_at_silence of its

@@ -29,7 +29,7 @@ from .restart_state import encode, worth_writing
 # A remote scale's status silent this long while the robot's uplink is up: a new connection.
 RESUBSCRIBE_AFTER_S = 5.0
 
-# The engine's holds (T after a return, hold_after_loss_s after a link loss) for a decision node
+# The engine's holds (T after a return, each node's hold after a link loss) for a decision node
 # started after this one (restart_state.py says what and why). Kept on the parameter server,
 # not in a file or in the agents' reports:
 # - a private parameter outlives the node's process, whichever way it is restarted: forked again
@@ -341,13 +341,16 @@ class DecisionNode(AgentActions):
         """What the allocator judged the last tick on: why a node does or does not move out."""
         with self.lock:
             state = self.state
+            held = self.engine.hold_after_loss_left(time.monotonic())
         if state is None:
             stat.summary(DiagnosticStatus.OK, "no decision yet")
             return stat
         # state.bandwidth_mbps is what the allocator may place: the estimate less the stay
         # margin, 0 on a weak link (LinkCapacity.usable).
         stat.summary(DiagnosticStatus.OK, f"link usable {state.bandwidth_mbps:.1f} Mbit/s, "
-                     f"{state.admit_bandwidth_mbps:.1f} held for moves out")
+                     f"{state.admit_bandwidth_mbps:.1f} held for moves out" +
+                     ("; home after a link loss: " + ", ".join(
+                         f"{n} {s:.0f} s more" for n, s in sorted(held.items())) if held else ""))
         for s in self.ch.scale_names:
             stat.add(f"{s} background load [%]", f"{state.scale_load.get(s, 0.0):.0f}")
             if s != self.master:

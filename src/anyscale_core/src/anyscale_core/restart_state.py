@@ -2,8 +2,8 @@
 Python, no ROS): the decision engine's holds in time, encoded with wall-clock times.
 
 Why. The paper's hysteresis says that a node brought home is not moved out again for T
-(hysteresis_s), and after a link loss no node moves out until the link has been up for
-hold_after_loss_s. Both are times the engine keeps in memory: when each node was last brought
+(hysteresis_s), and after a link loss no node moves out until the link has been up for its
+hold after a loss (hold_after_loss_s, node_hold_after_loss_s). Both are times the engine keeps in memory: when each node was last brought
 home (DecisionEngine.migrated_back_at) and when the link was last seen down (BandwidthHold).
 The decision node is restarted when it dies (its warm standby forks a new one, or roslaunch
 respawns it), and a new engine that knows neither moves nodes out again as soon as the link
@@ -12,7 +12,7 @@ has shown its bandwidth for bandwidth_hold_s (5 s): inside T, and inside the hol
 What. Only what a hold needs, each entry only while the hold it feeds still runs:
 - `migrated_back_at`: node -> when it was last brought home, while younger than T;
 - `link_lost_at`: when the link to a remote scale was last seen down, while younger than
-  hold_after_loss_s;
+  the longest hold after a loss;
 - `mapping` (node -> scale) with `saved_at`: a node that was out when the old decision node
   died and that the new one finds back home (its lease ran out while nobody renewed it) or
   starts at home was brought home by the restart: it is held for T from then. `saved_at` is
@@ -26,7 +26,7 @@ Clocks. The engine runs on a monotonic clock, which does not carry across proces
 stored as wall-clock (time.time()) and converted back with the new process's pair (wall, engine
 now). A stored time in the future (the wall clock stepped back) counts as now: its hold runs in
 full, on the safe side. A state saved longer ago than the longest hold it could feed (T,
-hold_after_loss_s) is ignored as a whole: a restart that slow (or a state left by an earlier
+the longest hold after a loss) is ignored as a whole: a restart that slow (or a state left by an earlier
 run) holds nothing any more.
 
 Malformed state (not JSON, another version, a time that is no number) raises
@@ -61,7 +61,7 @@ def worth_writing(state: RestartState, written: Optional[RestartState], out: boo
     less than refresh_s is no change: while the link stays down it moves on every tick, and
     written each tick it cost the robot 3 parameter writes a second for as long as the link
     was down, when the robot does all the work; a restart loses at most refresh_s of a hold
-    of hold_after_loss_s, and a link still down is seen down afresh at once."""
+    after a loss, and a link still down is seen down afresh at once."""
     if written is None:
         return True
     if out and since_written_s >= refresh_s:

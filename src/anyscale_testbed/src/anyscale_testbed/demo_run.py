@@ -125,8 +125,9 @@ def parse_args(argv, default_out: str):
     p.add_argument("--allocator", default="paper", help="paper (default), paper_local, optimal")
     p.add_argument("--hysteresis", type=float, default=10.0, help="the paper's T in s (10)")
     p.add_argument("--hold-after-loss", type=float, default=None, metavar="S",
-                   help="after a link loss, no move out until the link has been up this long "
-                        "(default: robot.launch's, 20; AMCL's own: --amcl-hold-after-loss)")
+                   help="after a link loss, no node but AMCL moves out until the link has been "
+                        "up this long (default: robot.launch's, 20; AMCL's own: "
+                        "--amcl-hold-after-loss)")
     p.add_argument("--amcl-hold-after-loss", type=float, default=None, metavar="S",
                    help="AMCL's own hold after a link loss (default: robot.launch's, 0: only "
                         "the bandwidth hold; 20 gives the rule of the evaluation of 2026-11-27)")

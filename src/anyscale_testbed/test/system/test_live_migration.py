@@ -39,7 +39,7 @@ ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "..",
 # 71-83 s with AMCL on the laptop this long (at 66 s for the link's return, a loop done at
 # 71 s left them out of the run; a clean-clone CI's loop was done at 70 s, 1 s into the moves
 # out after T, so the robot drives the loop twice and the run ends at DURATION_S). The hold
-# after a loss (robot.launch: 20 s, see
+# after a loss (robot.launch: 20 s, AMCL's 0, see
 # test_long_outage.py) is off here: (4) is about T.
 SCHEDULE = "[[0, 27], [40, 6], [52, 0], [57, 27]]"
 HYSTERESIS_S = 10.0

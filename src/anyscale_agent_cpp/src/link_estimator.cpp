@@ -12,6 +12,11 @@ namespace
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 }
 
+double silentSince(double heard, double subscribed_at)
+{
+  return std::isnan(heard) ? subscribed_at : std::max(heard, subscribed_at);
+}
+
 LinkSample::LinkSample() : rtt_s(kNaN), rtt_mean_s(kNaN), bandwidth_mbps(kNaN), last_answer_t(kNaN)
 {
 }

@@ -21,8 +21,9 @@ LinkMonitor::LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, 
   , master_scale_(std::move(master_scale))
   , options_(options)
   , estimator_(options.timeout_s)
+  , started_at_(now())
 {
-  resubscribed_at_ = now();
+  resubscribed_at_ = started_at_;
   if (is_master_)
   {
     pub_ = nh.advertise<anyscale_msgs::LinkProbe>("/anyscale/link/echo", 20);
@@ -85,13 +86,21 @@ void LinkMonitor::resubscribeIfSilent(double t)
   // once the link is back (a 100 s outage: nothing in the next 50 s), and roscpp sees no error
   // on a connection that only waits. A new subscription connects at once.
   const double heard = last_heard_;
-  if (std::isnan(heard) || t - heard < kResubscribeAfterS || t - resubscribed_at_ < kResubscribeAfterS)
+  if (t - silentSince(heard, resubscribed_at_) < kResubscribeAfterS)
     return;
   // Once per silence in the log: on the master it lasts as long as the other scales are gone.
-  if (heard != silence_logged_)
-    ROS_INFO("no link %s for %.0f s: subscribing again, and every %.0f s until one comes", is_master_ ? "probe" : "echo",
-             t - heard, kResubscribeAfterS);
-  silence_logged_ = heard;
+  const double silence_start = std::isnan(heard) ? started_at_ : heard;
+  if (silence_start != silence_logged_)
+  {
+    const char* what = is_master_ ? "probe" : "echo";
+    if (std::isnan(heard))
+      ROS_INFO("no link %s since this agent started %.0f s ago: subscribing again, and every %.0f s until one comes",
+               what, t - started_at_, kResubscribeAfterS);
+    else
+      ROS_INFO("no link %s for %.0f s: subscribing again, and every %.0f s until one comes", what, t - heard,
+               kResubscribeAfterS);
+  }
+  silence_logged_ = silence_start;
   std::lock_guard<std::mutex> lock(renew_mutex_);
   renewal_wanted_ = true;
   wake_renewal_.notify_one();

@@ -150,3 +150,16 @@ TEST(LinkEstimator, AWarmUpProbeIsAnsweredButNotMeasured)
   EXPECT_NEAR(e.stats(1.6).bandwidth_mbps, 10.0, 1e-6);
   EXPECT_EQ(e.answered(99, 1.7), ProbeKind::kSmall);  // unknown seq: ignored
 }
+
+TEST(SilentSince, ASubscriptionThatNeverHeardAnythingIsSilentSinceItWasMade)
+{
+  // The laptop agent whose echo subscription never connected: renewed like a dead one.
+  EXPECT_DOUBLE_EQ(anyscale_agent::silentSince(std::nan(""), 100.0), 100.0);
+}
+
+TEST(SilentSince, FromTheLastMessageOrTheLastRenewalWhicheverIsLater)
+{
+  EXPECT_DOUBLE_EQ(anyscale_agent::silentSince(120.0, 100.0), 120.0);
+  // Renewed since the last message: the new subscription gets its own time to connect.
+  EXPECT_DOUBLE_EQ(anyscale_agent::silentSince(120.0, 130.0), 130.0);
+}

@@ -37,6 +37,13 @@ struct LinkSample
 // A higher reading is blended in with `bandwidth_smoothing` (the weight of the new value); a
 // lower one is confirmed first: the next bulk probe goes out at once (confirmationWanted) and the
 // estimate falls to the higher of the two readings (or to the first, if the second is lost).
+// Since when a link subscription has carried nothing: its last message (`heard`), or its making
+// (`subscribed_at`) if that is later or nothing came yet (`heard` NaN). A subscription that never
+// connected is as dead as one whose connection died: roscpp does not retry a publisher it could
+// not reach (a robot agent that came up with the link down left the laptop agent's echo
+// subscription empty for a whole run, and the laptop out of reach on a good link).
+double silentSince(double heard, double subscribed_at);
+
 enum class ProbeKind
 {
   kSmall,   // RTT and loss

@@ -75,8 +75,9 @@ private:
   double last_bulk_ = -1e9;
   bool peer_seen_ = false;
   std::atomic<double> last_heard_{std::numeric_limits<double>::quiet_NaN()};  // last probe/echo [steady s]
+  const double started_at_;  // [steady s]
   std::atomic<double> resubscribed_at_{0.0};
-  double silence_logged_ = std::numeric_limits<double>::quiet_NaN();  // last_heard_ of the silence logged
+  double silence_logged_ = std::numeric_limits<double>::quiet_NaN();  // start of the silence logged
   // Renewals in a thread of their own: a subscribe calls the master and waits as long as TCP
   // does, and the timer thread must go on sending probes meanwhile.
   std::mutex renew_mutex_;

@@ -21,7 +21,7 @@ from .agent_client import AgentClient, CallFailures, Worker
 from .cost import perf
 from .decision_engine import DecisionEngine
 from .decision_params import NodeParams, ParamError, prepare_decision, read_params
-from .decision_types import RenewLeases, StartNode
+from .decision_types import RenewLeases, StartNode, silent_scales
 from .model import ModelError
 from .process_priority import set_own_nice
 from .restart_state import encode, worth_writing
@@ -206,14 +206,16 @@ class DecisionNode(AgentActions):
         """After a long outage, TCP's retransmission backoff can hold a scale's status connection
         silent for minutes after the link is back (a 100 s outage: no status in the next 50 s;
         rospy sees no error on a connection that only waits): a scale silent for
-        RESUBSCRIBE_AFTER_S while the robot's uplink has its carrier gets a new connection."""
+        RESUBSCRIBE_AFTER_S while the robot's uplink has its carrier gets a new connection, and so
+        does one never heard from (see silent_scales)."""
         now = time.monotonic()
         if now - self.resubscribed_at < RESUBSCRIBE_AFTER_S:
             return
         with self.lock:
             master = self.reports.get(self.master)
-            silent = [s for s, r in self.reports.items()
-                      if s != self.master and now - r.received_at > RESUBSCRIBE_AFTER_S]
+            received = {s: r.received_at for s, r in self.reports.items()}
+        silent = silent_scales([s for s in self.scale_workers if s != self.master], received,
+                               self.resubscribed_at, now, RESUBSCRIBE_AFTER_S)
         if not silent or master is None or not master.link_up:
             self.resubscribe_logged = []
             return

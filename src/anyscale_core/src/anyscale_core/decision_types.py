@@ -2,7 +2,7 @@
 report in the engine's terms, and the actions and events of a tick (no ROS)."""
 from dataclasses import dataclass, field
 import math
-from typing import Dict, List, Mapping, Tuple
+from typing import Dict, Iterable, List, Mapping, Tuple
 
 from .constraints import DynamicState
 from .restart_backoff import BackoffParams
@@ -69,6 +69,16 @@ def effective_rate(rate_hz: float, last_message_age_s: float) -> float:
     if math.isinf(last_message_age_s):
         return 0.0
     return rate_hz
+
+
+def silent_scales(scales: Iterable[str], received_at: Mapping[str, float], subscribed_at: float,
+                  now: float, after_s: float) -> List[str]:
+    """The scales whose status has not come for `after_s`: since their last one, or since the
+    status subscription was made if that is later or none came yet. A scale never heard from
+    counts too: rospy does not ask a publisher again whose requestTopic failed (an agent that
+    came up while the link was down), so its subscription stays empty until it is made anew."""
+    return [s for s in scales
+            if now - max(received_at.get(s, -math.inf), subscribed_at) > after_s]
 
 
 def pose_handoff_params(x: float, y: float, yaw: float, cov_xx: float, cov_yy: float,

@@ -15,7 +15,13 @@ The test kills TCP connections between the scales (`ss -K`) while the carrier is
 roscpp's retry comes during the outage, then brings the link back: within RECOVER_S the laptop
 must report its link up again, and count a topic published on the robot again. Twice: every
 connection, and only the counted topic's over a shorter outage (the probes live on; before the
-counters renewed themselves, only a probe renewal renewed them too)."""
+counters renewed themselves, only a probe renewal renewed them too).
+
+A subscription that never carried anything is as dead: when the robot's agent comes up while the
+link is down, the master's news of its echo publisher never reaches the laptop agent, which had
+subscribed first. Before the silence of a subscription that never heard anything counted, the
+laptop reported its link down for a whole run (the main command, office floor, seed 0: the start
+had no coverage, and no node moved out though the link came back at 27 Mbit/s for 169 s)."""
 import os
 import subprocess
 import sys
@@ -145,3 +151,54 @@ def test_the_laptop_counts_a_topic_from_the_robot_again_soon_after_the_link_retu
           else f"{COUNTED} never counted again")
     assert counted, f"the laptop never counted {COUNTED} again after the outage"
     assert counted[0] <= RECOVER_S, f"{COUNTED} counted again only {counted[0]:.1f} s after"
+
+
+def wait_for_log(path, text, timeout_s):
+    def logged():
+        try:
+            with open(path, errors="replace") as f:
+                return text in f.read()
+        except FileNotFoundError:
+            return False
+    assert wait_for(logged, timeout_s, 0.2), f"{path} never said {text!r}"
+
+
+@pytest.fixture(scope="module")
+def echo_publisher_came_during_an_outage(tmp_path_factory):
+    """The laptop agent subscribed to the echoes before the robot's agent existed; the robot's
+    agent advertised them with the link down; the link then came back."""
+    run_dir = str(tmp_path_factory.mktemp("late_echo"))
+    logs = os.path.join(run_dir, "logs")
+    statuses = os.path.join(run_dir, "laptop_link.txt")
+    with NamespaceBed(layout_with_cpu(0.0, 0.0)) as bed:
+        session = TestbedSession(bed, run_dir)
+        bed.start("robot", ["roscore", "-p", str(session.port)], session.env("robot"),
+                  os.path.join(logs, "roscore.log"), cpu_quota=False)
+        bed.start("laptop", [agent_binary(), "__name:=anyscale_agent_laptop", "_scale:=laptop",
+                             "_master_scale:=robot", f"_model:={MODEL}",
+                             "_sigint_timeout_s:=2.0"], session.env("laptop"),
+                  os.path.join(logs, "laptop.log"))
+        bed.start("laptop", [sys.executable, "-c", WATCH, statuses, COUNTED],
+                  session.env("laptop"), os.path.join(logs, "watch.log"), cpu_quota=False)
+        wait_for_log(os.path.join(logs, "laptop.log"), "anyscale agent of scale 'laptop'", 60.0)
+        assert wait_for(lambda: laptop_link(statuses), 30.0, 0.2), "no status from the laptop"
+        bed.set_link(False)
+        bed.start("robot", [agent_binary(), "__name:=anyscale_agent_robot", "_scale:=robot",
+                            "_is_master:=true", f"_model:={MODEL}", "_sigint_timeout_s:=2.0"],
+                  session.env("robot"), os.path.join(logs, "robot.log"))
+        wait_for_log(os.path.join(logs, "robot.log"), "anyscale agent of scale 'robot'", 30.0)
+        time.sleep(OUTAGE_S)     # the master's publisherUpdate to the laptop has failed by now
+        bed.set_link(True)
+        back = time.time()
+        wait_for(lambda: any(up for t, up, _ in laptop_link(statuses) if t > back),
+                 RECOVER_S + 8.0, 0.2)
+    return {"back": back, "statuses": laptop_link(statuses)}
+
+
+def test_a_laptop_that_never_heard_an_echo_reports_its_link_up_once_the_link_returns(
+        echo_publisher_came_during_an_outage):
+    outage = echo_publisher_came_during_an_outage
+    up = [t - outage["back"] for t, ok, _ in outage["statuses"] if ok and t > outage["back"]]
+    print(f"link up {up[0]:.2f} s after it returned" if up else "link never up")
+    assert up, "the laptop never reported its link up: its echo subscription never connected"
+    assert up[0] <= RECOVER_S, f"link up only {up[0]:.1f} s after it returned"

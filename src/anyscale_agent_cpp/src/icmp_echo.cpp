@@ -171,14 +171,36 @@ std::size_t echoBulkBytes(double estimate_mbps, std::size_t max_bytes)
   return std::clamp(std::size_t(bytes), kMin, most);
 }
 
+void RttFloor::add(double rtt_s)
+{
+  if (std::isnan(rtt_s))
+    return;
+  rtts_.push_back(rtt_s);
+  while (rtts_.size() > window_)
+    rtts_.pop_front();
+}
+
+double RttFloor::least() const
+{
+  if (rtts_.empty())
+    return std::numeric_limits<double>::quiet_NaN();
+  return *std::min_element(rtts_.begin(), rtts_.end());
+}
+
+double echoBandwidthMbps(std::size_t bytes, double bulk_rtt_s, double floor_rtt_s)
+{
+  return 2.0 * 8.0 * double(bytes) / std::max(bulk_rtt_s - floor_rtt_s, 50e-6) / 1e6;
+}
+
 double measureEchoBandwidth(IcmpEcho& echo, std::size_t bulk_bytes, double timeout_s, double bulk_timeout_s,
-                            uint16_t* seq)
+                            uint16_t* seq, RttFloor& floor)
 {
   const uint16_t small_seq = ++*seq;
   const double small_sent = echo.send(small_seq, 56);
   const double small_rtt = awaitReply(echo, small_seq, small_sent, timeout_s) - small_sent;
   if (std::isnan(small_rtt))
     return small_rtt;
+  floor.add(small_rtt);
   const std::size_t bytes = std::min(bulk_bytes, IcmpEcho::kMaxPayload);
   const uint16_t bulk_seq = ++*seq;
   const double bulk_sent = echo.send(bulk_seq, bytes);
@@ -189,8 +211,7 @@ double measureEchoBandwidth(IcmpEcho& echo, std::size_t bulk_bytes, double timeo
   // and the estimate had stayed at the 26 Mbit/s of before).
   if (std::isnan(bulk_rtt))
     bulk_rtt = bulk_timeout_s;
-  // 50 us floor: on loopback the difference is within timer noise and would divide by ~0.
-  return 2.0 * 8.0 * double(bytes) / std::max(bulk_rtt - small_rtt, 50e-6) / 1e6;
+  return echoBandwidthMbps(bytes, bulk_rtt, floor.least());
 }
 
 }  // namespace anyscale_agent

@@ -163,6 +163,7 @@ LinkMonitor::~LinkMonitor()
 void LinkMonitor::measureByEcho()
 {
   uint16_t seq = 0;
+  RttFloor floor;
   std::unique_lock<std::mutex> lock(mutex_);
   while (!stopping_)
   {
@@ -179,7 +180,7 @@ void LinkMonitor::measureByEcho()
       // what it would have taken at 20 ms of the estimate: no need to wait the whole link
       // timeout (2 s on the laptop) for the reading that brings a heavy stream home.
       mbps = measureEchoBandwidth(*icmp_, bytes, options_.timeout_s,
-                                  std::min(options_.timeout_s, 0.5), &seq);
+                                  std::min(options_.timeout_s, 0.5), &seq, floor);
     }
     catch (const std::exception& e)
     {

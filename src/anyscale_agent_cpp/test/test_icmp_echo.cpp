@@ -33,7 +33,8 @@ TEST(IcmpEcho, ASmallAndABulkEchoOnLoopbackGiveAFiniteBandwidth)
   if (!echo)
     GTEST_SKIP() << "no ICMP socket here (not root, ping sockets off): " << why;
   uint16_t seq = 0;
-  const double mbps = anyscale_agent::measureEchoBandwidth(*echo, 60000, 1.0, 0.5, &seq);
+  anyscale_agent::RttFloor floor;
+  const double mbps = anyscale_agent::measureEchoBandwidth(*echo, 60000, 1.0, 0.5, &seq, floor);
   EXPECT_TRUE(std::isfinite(mbps));
   EXPECT_GT(mbps, 0.0);
   EXPECT_EQ(seq, 2);
@@ -79,4 +80,28 @@ TEST(IcmpEcho, TheBulkIsAbout20MsOfTheEstimateWithinItsBounds)
   EXPECT_EQ(echoBulkBytes(3.0, 32768), 7500u);           // fits a 50 ms shaper queue (18.7 kB)
   EXPECT_EQ(echoBulkBytes(27.0, 32768), 32768u);         // capped by ~link_bulk_bytes
   EXPECT_EQ(echoBulkBytes(27.0, 1000000), 67500u - 2500u);  // and by what a datagram holds
+}
+
+TEST(RttFloor, TheLeastOfTheLastReadings)
+{
+  anyscale_agent::RttFloor floor(3);
+  EXPECT_TRUE(std::isnan(floor.least()));
+  floor.add(0.050);
+  floor.add(0.002);
+  floor.add(std::nan(""));  // an unanswered echo says nothing of the floor
+  floor.add(0.040);
+  EXPECT_DOUBLE_EQ(floor.least(), 0.002);
+  floor.add(0.030);  // 0.050 and then 0.002 leave the window
+  floor.add(0.045);
+  EXPECT_DOUBLE_EQ(floor.least(), 0.030);
+}
+
+TEST(EchoBandwidth, ABulkEchoThatMetAQueueReadsWhatTheLinkLeft)
+{
+  using anyscale_agent::echoBandwidthMbps;
+  // 15 kB each way at 6 Mbit/s: 20 ms a direction, 40 ms over the floor of an empty link.
+  EXPECT_NEAR(echoBandwidthMbps(15000, 0.042, 0.002), 6.0, 1e-9);
+  // The same echo behind 40 ms of the link's own traffic reads half of it.
+  EXPECT_NEAR(echoBandwidthMbps(15000, 0.082, 0.002), 3.0, 1e-9);
+  EXPECT_TRUE(std::isfinite(echoBandwidthMbps(15000, 0.001, 0.002)));  // below the floor: bounded
 }

@@ -3,6 +3,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <string>
 #include <utility>
 #include <vector>
@@ -61,12 +62,32 @@ namespace anyscale_agent
 // one fragment lost the whole echo, and the tail drops hit the nodes' own traffic on that link.
 std::size_t echoBulkBytes(double estimate_mbps, std::size_t max_bytes);
 
-// One bandwidth reading [Mbit/s] from a small echo (the path's floor, awaited for at most
-// `timeout_s`) and then one of `bulk_bytes` (at most `bulk_timeout_s`); NaN if the small one
-// went unanswered. The reply is as large as the request, so the reading is the harmonic mean of
-// the two directions: 2 * 8 B / (RTT_bulk - RTT_small); a bulk echo unanswered in time reads as
-// if it had taken `bulk_timeout_s`. Blocks for up to timeout_s + bulk_timeout_s.
+// The path's floor: the least small-echo RTT of the last `window` readings. A bulk echo's
+// bandwidth is measured against it, not against the small echo sent just before: a link that the
+// nodes' own streams fill has a queue that TCP fills and drains, and a small echo that met it
+// full followed by a bulk one that met it drained read 9-12 Mbit/s on a 6 Mbit/s link carrying
+// AR's camera stream (test bed, count_by_bus_stats), so AR stayed on a link it overfilled.
+// Against the floor the bulk echo's queueing counts: the reading is what the streams leave.
+class RttFloor
+{
+public:
+  explicit RttFloor(std::size_t window = 10) : window_(window) {}
+  void add(double rtt_s);  // NaN is ignored
+  double least() const;    // NaN until a reading came
+private:
+  std::size_t window_;
+  std::deque<double> rtts_;
+};
+
+// 2 * 8 B / (RTT_bulk - floor) [Mbit/s]: the reply is as large as the request, so the reading is
+// the harmonic mean of the two directions (50 us least difference: on loopback it is timer noise).
+double echoBandwidthMbps(std::size_t bytes, double bulk_rtt_s, double floor_rtt_s);
+
+// One bandwidth reading [Mbit/s] from a small echo (awaited for at most `timeout_s`, its RTT
+// added to `floor`) and then one of `bulk_bytes` (at most `bulk_timeout_s`), measured against the
+// floor; NaN if the small one went unanswered. A bulk echo unanswered in time reads as if it had
+// taken `bulk_timeout_s`. Blocks for up to timeout_s + bulk_timeout_s.
 double measureEchoBandwidth(IcmpEcho& echo, std::size_t bulk_bytes, double timeout_s, double bulk_timeout_s,
-                            uint16_t* seq);
+                            uint16_t* seq, RttFloor& floor);
 
 }  // namespace anyscale_agent

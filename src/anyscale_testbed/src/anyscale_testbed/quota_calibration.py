@@ -13,6 +13,13 @@ cores, lay on such a line), with k fitted by least squares to every measurement 
 secant through the last two: one 75 s measurement varies by about +-0.3 Hz, and on 2026-11-27
 0.254 cores read 2.25 Hz and 0.239 cores 2.32 Hz, so the secant had no usable slope, and the
 next reading (0.223 cores: 1.53 Hz) was as noisy again; the fit averages the noise out.
+
+Why the quota is kept only where AMCL runs at least its 2 Hz, not 2 +- 0.2 Hz: the premise is a
+robot that alone sustains its minimum rates, and no more. A quota kept at 1.8-1.9 Hz is a robot
+that alone breaks its own minimum: with nothing moving, AMCL then fell silent for longer than
+its Δ (tolerance bench 2026-11-27, run 4: 1.85 Hz at home, 4 silences of 2.09-2.20 s; in that
+bench and the evaluations of 2026-11-26/27 no run at 1.99 Hz or more had one at home). The
+window is 0.3 Hz wide (the old one 0.4), and the fit aims at its middle, 2.15 Hz.
 """
 from dataclasses import dataclass
 import math
@@ -21,7 +28,8 @@ from typing import Callable, List, Sequence, Tuple
 from .premise_figures import PREMISE_AMCL_HZ
 
 PRIOR_OTHER_CORES = 0.12      # the first step's guess of what the other nodes use (see above)
-SETTLED_HZ = 0.2              # a quota whose AMCL rate is this close to the premise's is kept
+SETTLED_HZ = (PREMISE_AMCL_HZ, PREMISE_AMCL_HZ + 0.3)   # a quota whose AMCL rate is in here is kept
+TARGET_HZ = sum(SETTLED_HZ) / 2                          # what each step aims at
 QUOTA_BOUNDS = (0.15, 0.8)    # cores: below, the drivers miss their rates; above, no premise
 MAX_RUNS = 3
 
@@ -36,7 +44,7 @@ class QuotaPoint:
     amcl_hz: float      # AMCL's rate with every node home at that quota
 
 
-def next_quota(points: Sequence[QuotaPoint], target_hz: float = PREMISE_AMCL_HZ) -> float:
+def next_quota(points: Sequence[QuotaPoint], target_hz: float = TARGET_HZ) -> float:
     """The quota at which rate = k x (quota - PRIOR_OTHER_CORES), k fitted to `points` by least
     squares, gives target_hz; within QUOTA_BOUNDS."""
     spare = [p.quota - PRIOR_OTHER_CORES for p in points]
@@ -46,8 +54,8 @@ def next_quota(points: Sequence[QuotaPoint], target_hz: float = PREMISE_AMCL_HZ)
     return round(min(max(quota, QUOTA_BOUNDS[0]), QUOTA_BOUNDS[1]), 3)
 
 
-def settled(point: QuotaPoint, target_hz: float = PREMISE_AMCL_HZ) -> bool:
-    return abs(point.amcl_hz - target_hz) <= SETTLED_HZ
+def settled(point: QuotaPoint) -> bool:
+    return SETTLED_HZ[0] <= point.amcl_hz <= SETTLED_HZ[1]
 
 
 def calibrate_quota(start_quota: float, measure: Callable[[float], float],
@@ -67,7 +75,7 @@ def calibrate_quota(start_quota: float, measure: Callable[[float], float],
             return quota, points
         step = next_quota(points)
         log(f"calibration: robot {quota:g} cores, AMCL {hz:.2f} Hz at home "
-            f"(premise {PREMISE_AMCL_HZ:g} +- {SETTLED_HZ:g}): next {step:g} cores")
+            f"(premise {SETTLED_HZ[0]:g}-{SETTLED_HZ[1]:g} Hz): next {step:g} cores")
         quota = step
     log(f"calibration: not settled after {max_runs} runs; running at {quota:g} cores, "
         f"the last step, unmeasured")

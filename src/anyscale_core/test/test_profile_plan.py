@@ -9,8 +9,9 @@ import yaml
 from anyscale_core.model import ModelError
 from anyscale_core.model_loader import parse_model
 from anyscale_core.model_update import update_model_text
-from anyscale_core.profile_plan import (MIN_SAMPLES, START_ESTIMATE_S, STOP_ESTIMATE_S,
-                                        CpuSample, format_duration, memory_figures,
+from anyscale_core.profile_plan import (MIN_SAMPLES, SATURATED_PERCENT, START_ESTIMATE_S,
+                                        STOP_ESTIMATE_S, CpuSample, describe_measurement,
+                                        format_duration, measurements_json, memory_figures,
                                         plan_profile, predict_seconds, profile_edits, summarise)
 
 
@@ -46,8 +47,9 @@ def test_prediction_counts_starts_windows_and_moves(testbed):
     assert format_duration(42) == "42 s" and format_duration(3700) == "1 h 1 min"
 
 
-def samples(node, scale, cpus, capacity, quota=True, t0=100.0, rss=100 * 2 ** 20):
-    return [CpuSample(t0 + 0.5 * i, scale, node, c, rss + i, capacity, quota)
+def samples(node, scale, cpus, capacity, quota=True, t0=100.0, rss=100 * 2 ** 20, busy=None):
+    return [CpuSample(t0 + 0.5 * i, scale, node, c, rss + i, capacity, quota,
+                      busy[i] if busy else float("nan"))
             for i, c in enumerate(cpus)]
 
 
@@ -65,6 +67,31 @@ def test_cpu_is_mean_over_capacity_within_the_window():
     # Without a quota the capacity is the scale's cores: 30 % of one core on 2 cores = 15 %.
     m2 = summarise(samples("x", "robot", [30.0] * 4, 2.0, quota=False), "x", "robot", 0, 1e9)
     assert m2.cpu_usage == 15.0 and not m2.quota
+
+
+def test_a_figure_on_a_scale_at_its_limit_is_named_a_share_with_its_cost_per_message():
+    # The robot of 2026-11-27 (0.236 cores, throttled in every period): AMCL 6.1 % of a core at
+    # 2.43 Hz is 25.1 ms of CPU per pose, the figure that does not move with the split.
+    busy_robot = summarise(samples("amcl", "robot", [6.0, 6.2, 6.1], 0.236, busy=[97, 99, 95]),
+                           "amcl", "robot", 0, 1e9, {"/amcl_pose": 2.43, "/silent": 0.0})
+    assert busy_robot.scale_busy == pytest.approx(97.0) and busy_robot.saturated
+    assert busy_robot.cpu_ms_per_message == {"/amcl_pose": pytest.approx(25.1, abs=0.05)}
+    line = describe_measurement(busy_robot)
+    assert "/amcl_pose 2.4 Hz, 25.1 ms of CPU per message" in line
+    assert "the scale 97 % busy, at its limit: the figure is the share the node got" in line
+    row = measurements_json([busy_robot])[0]
+    assert row["cpu_ms_per_message"] == {"/amcl_pose": 25.1} and row["saturated"]
+    assert row["scale_busy_percent"] == 97.0
+    # A laptop with room: its figure is the node's demand, not named a share.
+    idle = summarise(samples("amcl", "laptop", [9.2] * 3, 0.9, busy=[40, 45, 50]), "amcl",
+                     "laptop", 0, 1e9, {"/amcl_pose": 4.73})
+    assert not idle.saturated and "45 % busy" in describe_measurement(idle)
+    assert "share" not in describe_measurement(idle)
+    # An agent that does not say how busy its scale is: nothing claimed either way.
+    unknown = summarise(samples("x", "robot", [1.0] * 3, 1), "x", "robot", 0, 1e9)
+    assert not unknown.saturated and "busy" not in describe_measurement(unknown)
+    assert measurements_json([unknown])[0]["scale_busy_percent"] is None
+    assert SATURATED_PERCENT == 90.0
 
 
 def test_too_few_samples_is_an_error_naming_node_and_scale():

@@ -154,7 +154,7 @@ class AgentSession:
                 if p.state == RUNNING:
                     self._samples.append(CpuSample(now, msg.scale, p.name.lstrip("/"),
                                                    p.cpu_percent, p.rss_bytes, capacity,
-                                                   msg.cpu_quota_cores > 0))
+                                                   msg.cpu_quota_cores > 0, msg.cpu_percent))
 
     # -- what runs where ------------------------------------------------------------------
     def processes(self, scale: str):

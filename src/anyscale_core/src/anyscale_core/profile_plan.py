@@ -16,6 +16,14 @@ cores (its cgroup CPU quota where it has one, else its online cores): the model'
 is "% of that scale's whole CPU", the unit of the agents' scale load, which the CPU constraint
 adds it to. memory_mb is one number per node: the largest RSS seen on any scale, so the memory
 constraint is never too optimistic. Nothing here talks to ROS (profile_ros.py does).
+
+On a scale that runs at its quota's limit (the test bed's robot, by design: it sustains only the
+minimum rates) a node's CPU is the share the scheduler gave it, and that share moves with
+whatever else runs in the quota: with the agents' own work on the robot, AR got 6.8 % of a core
+against 9.8 % in bench_cpu_calibration.py's agent-free set-up, and AMCL 6.1 against 5.2 (2026-11-27).
+The CPU per output message is the node's own cost and does not move with the split (the same
+runs: AMCL 25.1 against 24.8 ms, AR 13.3 against 12.6 ms per message). So every figure says how
+busy its scale was and what one output message cost, and a saturated scale's is named a share.
 """
 import datetime
 import math
@@ -35,6 +43,11 @@ START_ESTIMATE_S = 3.0
 STOP_ESTIMATE_S = 1.0
 # Fewer samples than this in a window is no measurement (the agents sample at 2-5 Hz).
 MIN_SAMPLES = 3
+# A scale busier than this (% of its capacity, the agent's ScaleStatus.cpu_percent) over a window
+# ran at its limit: its nodes' figures are shares (see above). Not 100: the agents' samples are
+# not aligned with the quota's CFS periods, and a group throttled in every period still idles
+# in the few milliseconds between its processes' wake-ups.
+SATURATED_PERCENT = 90.0
 
 
 @dataclass(frozen=True)
@@ -123,6 +136,7 @@ class CpuSample:
     rss_bytes: int
     capacity_cores: float    # the scale's quota in cores, else its online cores
     quota: bool              # capacity_cores is a cgroup quota
+    scale_busy: float = math.nan   # the scale's whole CPU then, % of capacity_cores
 
 
 @dataclass(frozen=True)
@@ -138,6 +152,17 @@ class Measurement:
     rss_mb: float            # largest RSS in the window
     window_s: float
     output_rates: Mapping[str, float] = field(default_factory=dict)   # topic -> Hz
+    scale_busy: float = math.nan   # mean % of the scale's capacity in use over the window
+
+    @property
+    def saturated(self) -> bool:
+        return self.scale_busy >= SATURATED_PERCENT
+
+    @property
+    def cpu_ms_per_message(self) -> Dict[str, float]:
+        """topic -> ms of one core per message, for each output that published."""
+        return {t: self.cpu_one_core * 10.0 / hz for t, hz in self.output_rates.items()
+                if hz > 0}
 
 
 def summarise(samples: Iterable[CpuSample], node: str, scale: str, start: float, end: float,
@@ -152,10 +177,12 @@ def summarise(samples: Iterable[CpuSample], node: str, scale: str, start: float,
     cpu = [s.cpu_percent for s in mine]
     mean = statistics.fmean(cpu)
     capacity = statistics.median(s.capacity_cores for s in mine)
+    busy = [s.scale_busy for s in mine if math.isfinite(s.scale_busy)]
     return Measurement(node, scale, round(mean / capacity, 1), mean,
                        statistics.pstdev(cpu), len(mine), capacity, mine[-1].quota,
                        max(s.rss_bytes for s in mine) / 2 ** 20, end - start,
-                       dict(output_rates or {}))
+                       dict(output_rates or {}),
+                       statistics.fmean(busy) if busy else math.nan)
 
 
 def memory_figures(measurements: Sequence[Measurement]) -> Dict[str, float]:
@@ -169,9 +196,16 @@ def memory_figures(measurements: Sequence[Measurement]) -> Dict[str, float]:
 def describe_measurement(m: Measurement) -> str:
     capacity = (f"{m.capacity_cores:g} cores, its CPU quota" if m.quota
                 else f"{m.capacity_cores:g} cores")
-    rates = "".join(f"; {topic} {hz:.1f} Hz" for topic, hz in sorted(m.output_rates.items()))
+    per_message = m.cpu_ms_per_message
+    rates = "".join(f"; {topic} {hz:.1f} Hz"
+                    + (f", {per_message[topic]:.1f} ms of CPU per message" if topic in per_message
+                       else "")
+                    for topic, hz in sorted(m.output_rates.items()))
+    busy = ("" if not math.isfinite(m.scale_busy) else
+            f"; the scale {m.scale_busy:.0f} % busy" + (", at its limit: the figure is the share "
+                                                       "the node got" if m.saturated else ""))
     return (f"{m.scale} {m.cpu_usage:g} % ({m.cpu_one_core:.1f} % of one core, sd "
-            f"{m.cpu_sd:.1f}, {m.samples} samples; scale capacity {capacity}){rates}")
+            f"{m.cpu_sd:.1f}, {m.samples} samples; scale capacity {capacity}){rates}{busy}")
 
 
 def profile_edits(tree: Mapping, measurements: Sequence[Measurement], when: datetime.datetime,
@@ -208,5 +242,9 @@ def measurements_json(measurements: Sequence[Measurement]) -> List[Dict]:
              "cpu_percent_of_one_core": round(m.cpu_one_core, 2), "cpu_sd": round(m.cpu_sd, 2),
              "samples": m.samples, "capacity_cores": m.capacity_cores, "quota": m.quota,
              "rss_mb": round(m.rss_mb, 1), "window_s": round(m.window_s, 2),
-             "output_rates_hz": {t: round(hz, 2) for t, hz in m.output_rates.items()}}
+             "output_rates_hz": {t: round(hz, 2) for t, hz in m.output_rates.items()},
+             "cpu_ms_per_message": {t: round(ms, 2) for t, ms in m.cpu_ms_per_message.items()},
+             "scale_busy_percent": (round(m.scale_busy, 1) if math.isfinite(m.scale_busy)
+                                    else None),
+             "saturated": m.saturated}
             for m in measurements]

@@ -121,9 +121,9 @@ def test_the_tolerance_bench_finds_the_quota_before_each_run(tolerances, tmp_pat
     assert [os.path.relpath(a[a.index("--out") + 1], out) for a in argvs] == [
         "run01-calibration/run1", "run01-calibration/run2", "run01", "run02-calibration/run1",
         "run02"]
-    assert [a[a.index("--robot-cpu") + 1] for a in argvs] == ["0.34", "0.276", "0.276", "0.276",
-                                                             "0.276"]
-    assert "[1/2] start at goal 0, seed 11, robot 0.276 cores" in capsys.readouterr().out
+    assert [a[a.index("--robot-cpu") + 1] for a in argvs] == ["0.34", "0.288", "0.288", "0.288",
+                                                             "0.288"]
+    assert "[1/2] start at goal 0, seed 11, robot 0.288 cores" in capsys.readouterr().out
     # The calibration runs record what the runs record: the same load on the robot's quota.
     assert all(a[a.index("--record-inputs") + 1] == tolerances.DEFAULT_INPUTS for a in argvs)
-    assert "| run02-calibration | 0.276 | 0.276 cores: 2.07 Hz |" in (out / "tolerances.md").read_text()
+    assert "| run02-calibration | 0.288 | 0.288 cores: 2.21 Hz |" in (out / "tolerances.md").read_text()

@@ -284,33 +284,33 @@ def test_robot_cpu_auto_calibrates_each_pair_to_the_premise_and_keeps_it(
     assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", argv) == 0
     outs = [a[a.index("--out") + 1] for a in fake.argvs]
     quotas = [a[a.index("--robot-cpu") + 1] for a in fake.argvs]
-    # Pair 1: 0.34 cores read 2.82 Hz, the proportional step gave 0.276 (2.07 Hz: kept);
+    # Pair 1: 0.34 cores read 2.82 Hz, the proportional step gave 0.288 (2.21 Hz: kept);
     # pair 2 starts there and keeps it after one run.
     assert [os.path.relpath(o, out) for o in outs] == [
         "pair1-calibration/run1", "pair1-calibration/run2", "pair1-baseline", "pair1-paper",
         "pair2-calibration/run1", "pair2-baseline", "pair2-paper"]
-    assert quotas == ["0.34", "0.276", "0.276", "0.276", "0.276", "0.276", "0.276"]
+    assert quotas == ["0.34", "0.288", "0.288", "0.288", "0.288", "0.288", "0.288"]
     # Calibration runs are short and with every node home.
     assert fake.argvs[0][fake.argvs[0].index("--link"):] == ["--link", "schedule", "--schedule",
                                                              "[[0, 0]]"]
     assert float(fake.argvs[0][fake.argvs[0].index("--duration") + 1]) < 200
     printed = capsys.readouterr().out
     assert "pair1-calibration: calibration: robot 0.34 cores, AMCL 2.82 Hz at home" in printed
-    assert "[1/4] pair1-baseline: pair 1: baseline (no migration), robot 0.276 cores" in printed
+    assert "[1/4] pair1-baseline: pair 1: baseline (no migration), robot 0.288 cores" in printed
     with open(os.path.join(out, "evaluation.md")) as f:
         md = f.read()
-    assert "| pair1-calibration | 0.276 | 0.34 cores: 2.82 Hz, 0.276 cores: 2.07 Hz |" in md
+    assert "| pair1-calibration | 0.288 | 0.34 cores: 2.82 Hz, 0.288 cores: 2.21 Hz |" in md
     # An interrupted evaluation resumes at the quota its pair was calibrated to.
     for key in ("pair2-baseline", "pair2-paper"):
         shutil.rmtree(os.path.join(out, key))
     fake.argvs.clear()
     assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", argv) == 0
-    assert [a[a.index("--robot-cpu") + 1] for a in fake.argvs] == ["0.276", "0.276"]
-    assert "pair2-calibration: robot 0.276 cores, calibrated already" in capsys.readouterr().out
+    assert [a[a.index("--robot-cpu") + 1] for a in fake.argvs] == ["0.288", "0.288"]
+    assert "pair2-calibration: robot 0.288 cores, calibrated already" in capsys.readouterr().out
     # A calibration not made yet when the evaluation resumes starts from the newest one made.
     shutil.rmtree(os.path.join(out, "pair2-calibration"))
     for key in ("pair2-baseline", "pair2-paper"):
         shutil.rmtree(os.path.join(out, key))
     fake.argvs.clear()
     assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", argv) == 0
-    assert [a[a.index("--robot-cpu") + 1] for a in fake.argvs][0] == "0.276"
+    assert [a[a.index("--robot-cpu") + 1] for a in fake.argvs][0] == "0.288"

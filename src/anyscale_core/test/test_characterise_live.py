@@ -146,9 +146,13 @@ def test_profile_writes_figures_into_the_model_and_leaves_nothing_running(graph,
     for m in measured.values():
         assert m["samples"] >= 3 and 0 <= m["cpu_usage"] <= 100 and m["rss_mb"] > 1
         assert m["capacity_cores"] == psutil.cpu_count() and m["quota"] is False
+        # The agents say how busy the scale was: a relay on an idle machine is no share.
+        assert 0 <= m["scale_busy_percent"] <= 100 and m["saturated"] is (
+            m["scale_busy_percent"] >= 90)
     # The relay forwards the talker's 10 Hz on both scales: it ran, and ran fully, there.
     for scale in ("robot", "laptop"):
         assert 8 <= measured[("relay", scale)]["output_rates_hz"]["/chatter_relay"] <= 11
+        assert set(measured[("relay", scale)]["cpu_ms_per_message"]) == {"/chatter_relay"}
     assert result["written"] is True
     tree = yaml.safe_load(relay_model.read_text())
     relay = next(n for n in tree["nodes"] if n["name"] == "relay")

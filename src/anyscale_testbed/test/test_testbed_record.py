@@ -197,6 +197,28 @@ def test_a_silence_at_home_names_the_longest_gap_of_each_recorded_input():
                             "/odom 1.40 s from t=20.4 s")
 
 
+def test_a_silence_names_how_busy_the_scale_that_ran_the_node_was(tmp_path):
+    # AR at home and nothing moving, /ar_markers silent 1.09 s (the tolerance bench of
+    # 2026-11-27, run 1, t=345.3 s): was the robot at its quota? The laptop's load is no answer.
+    home = {"ar_recognition": "robot"}
+    rec = TestbedRecord(finished_t=40.0, outputs={"ar_recognition": "/ar_markers"},
+                        tolerances={"/ar_markers": 1.0}, mappings=[(0.0, home, 125.0, 0.0)],
+                        receipts={"/ar_markers": ticks(5.0, 20.0) + ticks(21.2, 40.0)},
+                        scale_cpu={"robot": [(19.5, 40.0), (20.2, 97.0), (20.7, 99.0),
+                                             (21.3, 50.0)],
+                                   "laptop": [(20.5, 10.0)]})
+    (v,) = tolerance_violations(rec)
+    assert v.cause == ("no move, restart or link change of ar_recognition; robot CPU 98 % busy "
+                       "over the silence (at its limit)")
+    rec.scale_cpu["robot"] = [(20.5, 60.0)]
+    (v,) = tolerance_violations(rec)
+    assert v.cause.endswith("; robot CPU 60 % busy over the silence")
+    path = str(tmp_path / "record.json")
+    rec.save(path)
+    assert TestbedRecord.load(path).scale_cpu == {"robot": [[20.5, 60.0]],
+                                                  "laptop": [[20.5, 10.0]]}
+
+
 def test_the_inputs_survive_a_round_trip_and_old_records_load_without_them(tmp_path):
     path = str(tmp_path / "record.json")
     TestbedRecord(inputs=["/scan"], receipts={"/scan": [1.0]}).save(path)

@@ -9,9 +9,11 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from anyscale_core.profile_plan import SATURATED_PERCENT
+
 from .premise_figures import (EVERY_NODE_HOME, PREMISE_AMCL_HZ, START_UP_S, premise_figures,
                               premise_off_note)
-from .testbed_record import EventRecord, ProcessSample, TestbedRecord, Violation
+from .testbed_record import EventRecord, ProcessSample, TestbedRecord, Violation, mapping_at
 
 
 def longest_gap(times: Sequence[float], start: float, end: float) -> float:
@@ -257,10 +259,21 @@ def silence_cause(rec: TestbedRecord, nodes, start: float, end: float,
                                              f"{', '.join(sorted(nodes)) or 'its publisher'}"]
     if ran_to_end:
         words.append("silent until the run ended")
+    load = scale_load(rec, mapping_at(rec, start).get(min(nodes), "") if nodes else "", start,
+                      end)
     inputs = input_gaps(rec, start, end)
-    if inputs:
-        words.append(inputs)
-    return "; ".join(words)
+    return "; ".join(words + [w for w in (load, inputs) if w])
+
+
+def scale_load(rec: TestbedRecord, scale: str, start: float, end: float) -> str:
+    """How busy the scale that ran the silent node was from `start` to `end`, from its agent's
+    reports, in words: whether the node was starved of CPU. "" where none was recorded."""
+    busy = [pct for t, pct in rec.scale_cpu.get(scale, []) if start <= t <= end]
+    if not busy:
+        return ""
+    mean = sum(busy) / len(busy)
+    return (f"{scale} CPU {mean:.0f} % busy over the silence"
+            + (" (at its limit)" if mean >= SATURATED_PERCENT else ""))
 
 
 def input_gaps(rec: TestbedRecord, start: float, end: float) -> str:

@@ -18,7 +18,7 @@ from typing import Dict, List, Optional, Set
 import rosgraph
 import rospy
 from anyscale_msgs.msg import Mapping as MappingMsg
-from anyscale_msgs.msg import MigrationEvent
+from anyscale_msgs.msg import MigrationEvent, ScaleStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Float32, String
@@ -152,6 +152,7 @@ class TestbedMonitor:
         rospy.Subscriber("/anyscale/events", MigrationEvent, self._on_event, queue_size=50)
         rospy.Subscriber("/anyscale/wifi/bandwidth_mbps", Float32, self._on_bandwidth,
                          queue_size=10)
+        rospy.Subscriber("/anyscale/status", ScaleStatus, self._on_scale_status, queue_size=10)
         rospy.Subscriber(rospy.get_param("~ground_truth_topic", "/sim/ground_truth"), Odometry,
                          self._on_truth, queue_size=20)
         rospy.Subscriber(rospy.get_param("~status_topic", "/navigation/status"), String,
@@ -235,6 +236,11 @@ class TestbedMonitor:
         if changed:
             say(f"t={self.now():6.1f} s  WiFi " + (f"back: {msg.data:.1f} Mbit/s" if up
                                                    else "lost (no coverage)"))
+
+    def _on_scale_status(self, msg):
+        with self.lock:
+            self.rec.scale_cpu.setdefault(msg.scale, []).append((self.now(),
+                                                                 float(msg.cpu_percent)))
 
     def _on_truth(self, msg):
         p, t = msg.pose.pose.position, msg.header.stamp.to_sec() - self.rec.started_wall

@@ -93,6 +93,10 @@ class TestbedRecord:
     # The decision node's parameters the run's figures are judged by (DECISION_PARAMS, read
     # from the parameter server when its first mapping came); empty in older records.
     decision_params: Dict[str, object] = field(default_factory=dict)
+    # Each scale's CPU as its agent reported it (ScaleStatus.cpu_percent: % of its quota, else
+    # of all its cores), (t, %) on this record's clock: a silence's cause then says whether the
+    # scale that ran the node was at its limit. Empty in older records.
+    scale_cpu: Dict[str, List[Tuple[float, float]]] = field(default_factory=dict)
 
     def save(self, path: str):
         with open(path, "w") as f:

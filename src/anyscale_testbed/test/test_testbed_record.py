@@ -208,11 +208,29 @@ def test_a_silence_names_how_busy_the_scale_that_ran_the_node_was(tmp_path):
                                              (21.3, 50.0)],
                                    "laptop": [(20.5, 10.0)]})
     (v,) = tolerance_violations(rec)
-    assert v.cause == ("no move, restart or link change of ar_recognition; robot CPU 98 % busy "
-                       "over the silence (at its limit)")
+    assert v.cause == ("no move, restart or link change of ar_recognition; /ar_markers at "
+                       "5.0 Hz on the robot in the 10 s before; robot CPU 98 % busy over the "
+                       "silence (at its limit)")
     rec.scale_cpu["robot"] = [(20.5, 60.0)]
     (v,) = tolerance_violations(rec)
     assert v.cause.endswith("; robot CPU 60 % busy over the silence")
+    # A node that moved in the 10 s before: its rate there says nothing of either scale.
+    rec.mappings.append((15.0, {"ar_recognition": "laptop"}, 201.0, 0.0))
+    rec.mappings.append((18.0, home, 125.0, 0.0))
+    (v,) = tolerance_violations(rec)
+    assert " Hz on the " not in v.cause
+    # AMCL coming home as AR fell silent (run 7, t=351.7 s): its start loads the robot. A move
+    # to the laptop does not, and is not named.
+    rec.mappings = [(0.0, home, 125.0, 0.0)]
+    rec.events = [EventRecord(19.6, "migrate_back", "amcl", "laptop", "robot",
+                              "link to laptop down", 0.4, True, 19.2),
+                  EventRecord(20.5, "migrate", "navigation", "robot", "laptop", "x", 0.4, True,
+                              20.1)]
+    (v,) = tolerance_violations(rec)
+    assert v.cause.startswith("no move, restart or link change of ar_recognition; migrate_back "
+                              "amcl laptop -> robot at t=19.2 s, starting on the robot as "
+                              "ar_recognition fell silent; /ar_markers at 5.0 Hz")
+    assert "navigation" not in v.cause
     path = str(tmp_path / "record.json")
     rec.save(path)
     assert TestbedRecord.load(path).scale_cpu == {"robot": [[20.5, 60.0]],

@@ -239,30 +239,57 @@ def tolerance_violations(rec: TestbedRecord, outputs: Optional[Dict[str, str]] =
         nodes = {n for n, t in outputs.items() if t == topic}
         for a, b in silences_longer_than(judged_receipts(rec, topic), tol, end):
             found.append(Violation(topic, a, b, b - a, tol,
-                                   silence_cause(rec, nodes, a, b, ran_to_end=b >= end)))
+                                   silence_cause(rec, nodes, a, b, ran_to_end=b >= end,
+                                                 topic=topic)))
     return sorted(found, key=lambda v: v.start_t)
 
 
 def silence_cause(rec: TestbedRecord, nodes, start: float, end: float,
-                  ran_to_end: bool = False) -> str:
+                  ran_to_end: bool = False, topic: str = "") -> str:
     """What happened to the topic's publishers and the link from shortly before a silence
     began to its end, in time order, in words."""
     near = [(t, f"link {'back' if up else 'down'} at t={t:.1f} s")
             for t, up in link_transitions(rec.bandwidth) if start - MOVE_LEAD_S <= t <= end]
+    node = min(nodes) if nodes else ""
+    scale = mapping_at(rec, start).get(node, "")
+    others = []         # other nodes starting on the silent node's scale: their start loads it
     for e in rec.events:
         first, last = move_window(e)
-        if e.node in nodes and first <= end and last >= start - MOVE_LEAD_S:
-            move = f" {e.from_scale} -> {e.to_scale}" if e.from_scale else f" on {e.to_scale}"
+        if first > end or last < start - MOVE_LEAD_S:
+            continue
+        move = f" {e.from_scale} -> {e.to_scale}" if e.from_scale else f" on {e.to_scale}"
+        if e.node in nodes:
             near.append((e.decided_t, f"{e.kind} {e.node}{move} at t={e.decided_t:.1f} s "
                                       f"({e.reason})"))
+        elif scale and e.to_scale == scale:
+            others.append((e.decided_t, f"{e.kind} {e.node}{move} at t={e.decided_t:.1f} s, "
+                                        f"starting on the {scale} as {node} fell silent"))
     words = [w for _, w in sorted(near)] or ["no move, restart or link change of "
                                              f"{', '.join(sorted(nodes)) or 'its publisher'}"]
+    words += [w for _, w in sorted(others)]
     if ran_to_end:
         words.append("silent until the run ended")
-    load = scale_load(rec, mapping_at(rec, start).get(min(nodes), "") if nodes else "", start,
-                      end)
+    load = scale_load(rec, scale, start, end)
     inputs = input_gaps(rec, start, end)
-    return "; ".join(words + [w for w in (load, inputs) if w])
+    return "; ".join(words + [w for w in (rate_before(rec, topic, node, start), load, inputs)
+                              if w])
+
+
+# How far back rate_before looks: a few of a starved AMCL's updates.
+RATE_BEFORE_S = 10.0
+
+
+def rate_before(rec: TestbedRecord, topic: str, node: str, start: float) -> str:
+    """The topic's rate over RATE_BEFORE_S before a silence, in words, where one scale ran its
+    publisher `node` all that time: a node that was already below its minimum rate there is
+    told from one that stopped at once. "" otherwise."""
+    scale = mapping_at(rec, start).get(node, "")
+    if not topic or not scale or start < RATE_BEFORE_S or any(
+            m.get(node) != scale for t, m, _, _ in rec.mappings
+            if start - RATE_BEFORE_S < t < start):
+        return ""
+    n = sum(1 for t in rec.receipts.get(topic, []) if start - RATE_BEFORE_S <= t < start)
+    return f"{topic} at {n / RATE_BEFORE_S:.1f} Hz on the {scale} in the {RATE_BEFORE_S:g} s before"
 
 
 def scale_load(rec: TestbedRecord, scale: str, start: float, end: float) -> str:

@@ -20,10 +20,11 @@ constraint is never too optimistic. Nothing here talks to ROS (profile_ros.py do
 On a scale that runs at its quota's limit (the test bed's robot, by design: it sustains only the
 minimum rates) a node's CPU is the share the scheduler gave it, and that share moves with
 whatever else runs in the quota: with the agents' own work on the robot, AR got 6.8 % of a core
-against 9.8 % in bench_cpu_calibration.py's agent-free set-up, and AMCL 6.1 against 5.2 (2026-11-27).
-The CPU per output message is the node's own cost and does not move with the split (the same
-runs: AMCL 25.1 against 24.8 ms, AR 13.3 against 12.6 ms per message). So every figure says how
-busy its scale was and what one output message cost, and a saturated scale's is named a share.
+against 9.8 % in bench_cpu_calibration.py's agent-free set-up, and AMCL 6.1 against 5.2
+(2026-11-27). The CPU per output message is the node's own cost and moves far less with the
+split (the same runs: AMCL 25.1 against 24.8 ms, AR 13.3 against 12.6 ms per message). So every
+figure says how busy its scale was and what one output message cost, and a saturated scale's is
+named a share.
 """
 import datetime
 import math

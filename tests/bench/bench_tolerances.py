@@ -72,8 +72,9 @@ def parse_args(argv):
                    help="each run with run_testbed.py --normalise-cpu: the CPU quotas follow the "
                         "host's speed, so that every run's robot is as fast as the calibrated "
                         "one (this shared VM's speed drifts: AMCL with every node home ran "
-                        "3.18-1.77 Hz in 7 runs at the same quota); see run_testbed.py --help. "
-                        "Off by default; its first validation cut the robot by 40 %%: see the anyscale_testbed README")
+                        "3.18-1.77 Hz in 7 runs at the same quota), relative to the host's "
+                        "speed at which its quota was found (--robot-cpu auto: that of its "
+                        "calibration run); see run_testbed.py --help. Off by default")
     p.add_argument("--robot-cpu", default="auto", metavar="CORES|auto",
                    help="the robot's CPU quota of every run (run_testbed.py --robot-cpu); auto "
                         "(default): found before each run, the quota at which AMCL runs its "
@@ -109,21 +110,25 @@ def goal_count(world: str) -> int:
         sys.exit(f"bench: --world {world}: cannot read its goals from {path}: {e}")
 
 
-def run_argv(args, start_goal: int, seed: int, out_dir: str, robot_cpu=None):
+def run_argv(args, start_goal: int, seed: int, out_dir: str, robot_cpu=None, found_at_ms=None):
     """run_testbed.py's command line for one run of the main job's scenario; robot_cpu: its
-    robot's quota (None: the calibration file's)."""
+    robot's quota (None: the calibration file's); found_at_ms: the host speed it was found at
+    (with --normalise-cpu, the reference the quotas follow from)."""
     return ([sys.executable, RUN_TESTBED, "--world", args.world, "--link", "coverage",
              "--seed", str(seed), "--allocator", args.allocator, "--start-goal", str(start_goal),
              "--duration", str(args.duration), "--out", out_dir]
             + (["--normalise-cpu"] if args.normalise_cpu else [])
+            + (["--reference-cpu-ms", f"{found_at_ms:.3f}"]
+               if args.normalise_cpu and found_at_ms is not None else [])
             + (["--robot-cpu", f"{robot_cpu:g}"] if robot_cpu is not None else [])
             + (["--record-inputs", args.record_inputs] if args.record_inputs else []))
 
 
-def run_once(args, start_goal: int, seed: int, out_dir: str, robot_cpu=None) -> int:
+def run_once(args, start_goal: int, seed: int, out_dir: str, robot_cpu=None,
+             found_at_ms=None) -> int:
     """One run of the main job's scenario; its console output goes to out_dir/console.log.
     Returns run_testbed.py's exit code."""
-    return run_logged(run_argv(args, start_goal, seed, out_dir, robot_cpu), out_dir)
+    return run_logged(run_argv(args, start_goal, seed, out_dir, robot_cpu, found_at_ms), out_dir)
 
 
 def main(argv=None) -> int:
@@ -153,11 +158,12 @@ def main(argv=None) -> int:
                 code, took = 0, "recorded"
             else:
                 robot_cpu = quotas.quota(f"run{k + 1:02d}-calibration")
+                found_at_ms = quotas.found_at_ms(f"run{k + 1:02d}-calibration")
                 at = f", robot {robot_cpu:g} cores" if robot_cpu is not None else ""
                 print(f"[{k + 1}/{args.runs}] start at goal {start_goal}, seed {seed}{at}, log "
                       f"{run_dir}/console.log", flush=True)
                 began = time.monotonic()
-                code = run_once(args, start_goal, seed, run_dir, robot_cpu)
+                code = run_once(args, start_goal, seed, run_dir, robot_cpu, found_at_ms)
                 took = f"done in {time.monotonic() - began:.0f} s"
                 recorded = latest_record(run_dir)
             rows.append(run_row(k + 1, start_goal, code, recorded, seed))

@@ -126,4 +126,37 @@ def test_the_tolerance_bench_finds_the_quota_before_each_run(tolerances, tmp_pat
     assert "[1/2] start at goal 0, seed 11, robot 0.288 cores" in capsys.readouterr().out
     # The calibration runs record what the runs record: the same load on the robot's quota.
     assert all(a[a.index("--record-inputs") + 1] == tolerances.DEFAULT_INPUTS for a in argvs)
-    assert "| run02-calibration | 0.288 | 0.288 cores: 2.21 Hz |" in (out / "tolerances.md").read_text()
+    # Records without a timed host speed (older runs): no reference, "-".
+    assert "| run02-calibration | 0.288 | 0.288 cores: 2.21 Hz | - |" in (
+        out / "tolerances.md").read_text()
+
+
+def test_the_tolerance_bench_normalises_from_each_calibrations_host_speed(tolerances, tmp_path,
+                                                                          monkeypatch):
+    from anyscale_testbed import quota_for_the_day
+    from test_evaluation_table import on, record
+    argvs = []
+
+    def fake_run(argv, out_dir):
+        """AMCL 2 Hz at home at 0.27 cores; each run timed the host at 10 ms + 1 per run."""
+        argvs.append(argv)
+        quota = float(argv[argv.index("--robot-cpu") + 1])
+        rec = record(mappings=[(0.0, on(), 0.0, 0.0)], amcl_hz=2.0 * (quota - 0.10) / 0.17)
+        rec.cpu_normalisation = [(60.0, quota, 0.9, 10.0 + len(argvs))]
+        os.makedirs(os.path.join(out_dir, "office_floor-fake"))
+        rec.save(os.path.join(out_dir, "office_floor-fake", "record.json"))
+        return 0
+    monkeypatch.setattr(tolerances, "run_logged", fake_run)
+    monkeypatch.setattr(quota_for_the_day, "run_logged", fake_run)
+    monkeypatch.setattr(quota_for_the_day, "quota_cores", lambda robot, laptop: (0.34, 0.9))
+    monkeypatch.setattr(tolerances, "start_on_the_testbed", lambda program: None)
+    monkeypatch.setattr(tolerances, "goal_count", lambda world: 5)
+    out = tmp_path / "bench"
+    tolerances.main(["--runs", "2", "--normalise-cpu", "--out", str(out)])
+    runs = [a for a in argvs if "calibration" not in a[a.index("--out") + 1]]
+    # Run 1 follows from its calibration's kept run (the 2nd: 12 ms), run 2 from its own (14).
+    assert [a[a.index("--reference-cpu-ms") + 1] for a in runs] == ["12.000", "14.000"]
+    assert all("--normalise-cpu" in a for a in runs)
+    assert not any("--normalise-cpu" in a for a in argvs if a not in runs)
+    assert "| run01-calibration | 0.288 | 0.34 cores: 2.82 Hz, 0.288 cores: 2.21 Hz | 12.0 |" in (
+        out / "tolerances.md").read_text()

@@ -109,12 +109,21 @@ def test_robot_cpu_is_the_calibration_files_cores_or_auto(capsys):
         assert message in capsys.readouterr().err
 
 
-def test_robot_cpu_auto_and_normalise_cpu_are_not_given_together(capsys):
-    with pytest.raises(SystemExit) as ended:
-        parse_args(["--robot-cpu", "auto", "--normalise-cpu"], "out")
-    assert ended.value.code == 2
-    assert "--robot-cpu auto and --normalise-cpu both correct" in capsys.readouterr().err
-    assert parse_args(["--robot-cpu", "0.3", "--normalise-cpu"], "out").normalise_cpu
+def test_normalise_cpu_follows_the_host_speed_the_quota_was_found_at(capsys):
+    # auto measures its own reference (its calibration run's), a given quota takes one given.
+    both = parse_args(["--robot-cpu", "auto", "--normalise-cpu"], "out")
+    assert both.normalise_cpu and both.calibrate_robot_cpu and both.reference_cpu_ms is None
+    given = parse_args(["--robot-cpu", "0.3", "--normalise-cpu", "--reference-cpu-ms", "9.8"],
+                       "out")
+    assert given.reference_cpu_ms == 9.8
+    for argv, said in ((["--reference-cpu-ms", "9.8"], "9.8 without --normalise-cpu"),
+                       (["--normalise-cpu", "--reference-cpu-ms", "0"], "got 0"),
+                       (["--robot-cpu", "auto", "--normalise-cpu", "--reference-cpu-ms", "9"],
+                        "--robot-cpu auto measures its own")):
+        with pytest.raises(SystemExit) as ended:
+            parse_args(argv, "out")
+        assert ended.value.code == 2
+        assert said in capsys.readouterr().err
 
 
 def test_loops_are_one_unless_asked_for_and_bounded(capsys):
@@ -138,6 +147,11 @@ def test_robot_cpu_auto_runs_the_calibration_with_the_runs_own_options(tmp_path,
         argvs.append(argv)
         quota = float(argv[argv.index("--robot-cpu") + 1])
         rec = record(mappings=[(0.0, on(), 0.0, 0.0)], amcl_hz=2.0 + (quota - 0.25) / 0.09 * 1.4)
+        # The host's speed as the run timed it: 12 ms of workload, 11 in the second run; the
+        # first 20 s (the start-up) do not count.
+        ms = 12.0 if len(argvs) == 1 else 11.0
+        rec.cpu_normalisation = [(5.0, quota, 0.9, 30.0)] + [(t, quota, 0.9, ms)
+                                                             for t in (40.0, 45.0, 50.0)]
         os.makedirs(os.path.join(out_dir, "office_floor-fake"))
         rec.save(os.path.join(out_dir, "office_floor-fake", "record.json"))
         return 0
@@ -145,8 +159,9 @@ def test_robot_cpu_auto_runs_the_calibration_with_the_runs_own_options(tmp_path,
     monkeypatch.setattr(quota_for_the_day, "quota_cores", lambda robot, laptop: (0.34, 0.9))
     args = parse_args(["--robot-cpu", "auto", "--cfs-period-ms", "50", "--model", "my.yaml"],
                       "out")
-    quota = demo_run.quota_for_this_moment("run_testbed.py", args, str(tmp_path))
+    quota, found_at_ms = demo_run.quota_for_this_moment("run_testbed.py", args, str(tmp_path))
     assert 0.23 < quota < 0.27
+    assert found_at_ms == 11.0          # the run that measured the quota kept
     assert len(argvs) == 2 and all(a[a.index("--cfs-period-ms") + 1] == "50" for a in argvs)
     assert all(a[a.index("--model") + 1] == "my.yaml" for a in argvs)
     assert all(a[a.index("--schedule") + 1] == "[[0, 0]]" for a in argvs)   # every node home

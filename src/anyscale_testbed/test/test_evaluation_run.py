@@ -299,7 +299,7 @@ def test_robot_cpu_auto_calibrates_each_pair_to_the_premise_and_keeps_it(
     assert "[1/4] pair1-baseline: pair 1: baseline (no migration), robot 0.288 cores" in printed
     with open(os.path.join(out, "evaluation.md")) as f:
         md = f.read()
-    assert "| pair1-calibration | 0.288 | 0.34 cores: 2.82 Hz, 0.288 cores: 2.21 Hz |" in md
+    assert "| pair1-calibration | 0.288 | 0.34 cores: 2.82 Hz, 0.288 cores: 2.21 Hz | - |" in md
     # An interrupted evaluation resumes at the quota its pair was calibrated to.
     for key in ("pair2-baseline", "pair2-paper"):
         shutil.rmtree(os.path.join(out, key))

@@ -149,6 +149,18 @@ def test_the_quotas_stay_within_the_bounds_and_the_host():
     assert quotas["laptop"].set[-1] == pytest.approx(2.0)      # the host has 2 cores
 
 
+def test_without_follow_the_host_speed_is_recorded_and_the_quotas_left_alone():
+    clock, lines = FakeClock(), []
+    robot = FakeQuota()
+    n = CpuNormaliser({"robot": robot}, {"robot": 0.34}, reference_cpu_ms=None, follow=False,
+                      initial_samples=1, measure=lambda: 31.0, clock=clock, log=lines.append)
+    n.tick()
+    assert robot.set == [] and lines == []
+    assert flat(n.history) == pytest.approx([1000.0, 0.34, 0.0, 31.0])
+    with pytest.raises(ValueError, match="reference_cpu_ms must be positive"):
+        CpuNormaliser({"robot": robot}, {"robot": 0.34}, reference_cpu_ms=None)
+
+
 def test_a_scale_without_a_quota_is_left_alone_and_recorded_as_0():
     clock, lines = FakeClock(), []
     robot = FakeQuota()

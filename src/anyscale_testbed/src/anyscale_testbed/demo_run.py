@@ -20,7 +20,7 @@ import json
 import os
 import signal
 import sys
-from typing import List
+from typing import List, Optional, Tuple
 
 import yaml
 
@@ -101,15 +101,20 @@ def parse_args(argv, default_out: str):
     p.add_argument("--laptop-cpu", type=float, default=None, metavar="CORES",
                    help="laptop CPU quota (default: the calibration file's)")
     p.add_argument("--normalise-cpu", action="store_true",
-                   help="scale both CPU quotas with the host's speed: every 5 s time a fixed "
-                        "workload (anyscale_testbed/host_speed.py) and set each quota to its "
-                        "cores x the workload's median CPU ms / the calibration's "
-                        "reference_cpu_ms, so that each scale gets the work per second done that "
-                        "it had at the calibration. Why: this host is a shared VM whose speed "
+                   help="scale both CPU quotas with the host's speed: every run times a fixed "
+                        "workload (anyscale_testbed/host_speed.py) every 5 s and records its "
+                        "CPU ms (cpu_normalisation); with this option each quota is also set to "
+                        "its cores x the workload's median ms / the ms at which the quota was "
+                        "found (--reference-cpu-ms), so that each scale gets the work per second "
+                        "done that it had then. Why: this host is a shared VM whose speed "
                         "drifts; at the same 0.34 cores AMCL with every node home ran 3.18 to "
-                        "1.77 Hz over 7 runs as the workload took 11.8-16.5 ms. The quotas and "
-                        "the workload's ms go in the record (cpu_normalisation). Off by "
-                        "default; its first validation cut the robot by 40 %%: see the anyscale_testbed README")
+                        "1.77 Hz over 7 runs as the workload took 11.8-16.5 ms. Off by default; "
+                        "see the anyscale_testbed README")
+    p.add_argument("--reference-cpu-ms", type=float, default=None, metavar="MS",
+                   help="--normalise-cpu: the workload's CPU ms, timed the same way, at which "
+                        "--robot-cpu was found (bench_tolerances.py and run_evaluation.py pass "
+                        "their calibration's). Default: with --robot-cpu auto, the calibration "
+                        "run's own; else the calibration file's reference_cpu_ms")
     p.add_argument("--cfs-period-ms", type=float, default=CFS_PERIOD_US / 1000, metavar="MS",
                    help="the CPU quotas' CFS period, 1-1000 ms (default: the kernel's 100). A "
                         "group that used its quota waits for the next period; 10 ms was "
@@ -149,11 +154,13 @@ def parse_args(argv, default_out: str):
     if args.seed < 0:
         p.error(f"--seed: expected an integer >= 0, got {args.seed}")
     args.calibrate_robot_cpu = args.robot_cpu == "auto"
-    if args.calibrate_robot_cpu and args.normalise_cpu:
-        # Both correct for the host's speed: the quota found for this moment would be scaled
-        # again by the calibration file's reference_cpu_ms.
-        p.error("--robot-cpu auto and --normalise-cpu both correct the quota for this host's "
-                "speed; give one of them")
+    if args.reference_cpu_ms is not None and not (args.normalise_cpu
+                                                  and 0 < args.reference_cpu_ms < 1000):
+        p.error("--reference-cpu-ms: expected 0-1000 ms with --normalise-cpu, got "
+                f"{args.reference_cpu_ms:g}" + ("" if args.normalise_cpu
+                                                 else " without --normalise-cpu"))
+    if args.calibrate_robot_cpu and args.reference_cpu_ms is not None:
+        p.error("--reference-cpu-ms: --robot-cpu auto measures its own")
     try:
         args.robot_cpu = parse_robot_cpu(args.robot_cpu) if args.robot_cpu else None
     except ValueError as e:
@@ -177,8 +184,10 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
     args = parse_args(argv, default_out)
     model = args.model or nav_demo_path("config", "testbed.yaml")
     robot_cpu, laptop_cpu = quota_cores(args.robot_cpu, args.laptop_cpu)
-    reference_ms = (calibrated_reference_ms(nav_demo_path("config", "testbed_calibration.yaml"))
-                    if args.normalise_cpu else None)
+    reference_ms = args.reference_cpu_ms
+    if args.normalise_cpu and reference_ms is None and not args.calibrate_robot_cpu:
+        reference_ms = calibrated_reference_ms(nav_demo_path("config",
+                                                             "testbed_calibration.yaml"))
     (x, y, yaw), goals = world_start(args.world, args.start_goal, args.loops)
 
     missing = [] if args.loopback else missing_capabilities()
@@ -204,30 +213,38 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
         print(PREFIX + "--robot-cpu auto: no CPU quotas on loopback, nothing to calibrate")
     elif args.calibrate_robot_cpu:
         try:
-            robot_cpu = quota_for_this_moment(run_testbed, args, run_dir)
+            robot_cpu, found_at_ms = quota_for_this_moment(run_testbed, args, run_dir)
         except (CalibrationError, KeyboardInterrupt) as e:
             print(PREFIX + f"--robot-cpu auto: {str(e) or 'interrupted'}; no run")
             return 1 if isinstance(e, CalibrationError) else 130
+        if args.normalise_cpu and found_at_ms is None:
+            print(PREFIX + "--normalise-cpu: the calibration timed no host speed; the quotas "
+                  "stay as found")
+        reference_ms = found_at_ms
     bed = LoopbackBed() if loopback else NamespaceBed(layout_with_cpu(robot_cpu, laptop_cpu),
                                                       cfs_period_us=int(args.cfs_period_ms * 1000))
     normaliser = None
-    if args.normalise_cpu and not loopback:
+    if not loopback:
+        # Every run times its host's speed (the record's cpu_normalisation: a calibration run's
+        # is the reference of the runs at its quota); only --normalise-cpu moves the quotas.
         # The groups exist once the bed is entered; the normaliser is entered after it and left
         # before it, so it never writes to a group the teardown is removing.
         normaliser = CpuNormaliser(bed.quotas, {"robot": robot_cpu, "laptop": laptop_cpu},
                                    reference_ms, settle_s=NORMALISE_SETTLE_S,
+                                   follow=args.normalise_cpu and reference_ms is not None,
                                    log=lambda line: print(PREFIX + line, flush=True))
+    following = normaliser is not None and normaliser.follow
     print(PREFIX + f"world {args.world}, link {link}" + (f" seed {args.seed}" if seed else "")
           + ("" if loopback else f", CPU quota robot {robot_cpu:g} / laptop {laptop_cpu:g} cores"
                                  f" per {args.cfs_period_ms:g} ms period")
           + (f" at the host speed of the calibration ({reference_ms:g} ms workload), "
-             "normalised every 5 s" if normaliser else "")
+             "normalised every 5 s" if following else "")
           + f"; logs and results in {run_dir}")
 
     interrupted = False
     try:
         with bed, (normaliser or contextlib.nullcontext()):
-            if normaliser:
+            if following:
                 print(PREFIX + normaliser_state(normaliser), flush=True)
             session = TestbedSession(bed, run_dir)
             world = launch_demo(session, bed, args, model, (x, y, yaw), goals, record, run_dir,
@@ -246,7 +263,8 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
         # After the bed's teardown: the monitor, which writes the record, has ended.
         if normaliser and os.path.exists(record):
             try:
-                store_cpu_normalisation(record, normaliser.history_copy(), reference_ms)
+                store_cpu_normalisation(record, normaliser.history_copy(),
+                                        reference_ms if following else None)
             except (OSError, ValueError, TypeError, KeyError) as e:
                 print(PREFIX + f"the quotas' history is not in the record: {e}")
         if interrupted and os.path.exists(record):
@@ -258,9 +276,10 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
             print(PREFIX + f"record: {record}")
 
 
-def quota_for_this_moment(run_testbed: str, args, run_dir: str) -> float:
+def quota_for_this_moment(run_testbed: str, args, run_dir: str) -> Tuple[float, Optional[float]]:
     """--robot-cpu auto: the robot's quota at which AMCL runs the premise's rate with every node
-    home, found by short runs kept in run_dir/robot_quota/ (quota_for_the_day.py)."""
+    home, found by short runs kept in run_dir/robot_quota/ (quota_for_the_day.py), and the host
+    speed (workload CPU ms) it was found at, None if its runs timed none."""
     print(PREFIX + "--robot-cpu auto: finding the robot's CPU quota at which AMCL runs its "
           f"2 Hz minimum with every node home (the paper's premise), by 1-{MAX_RUNS} runs of "
           f"{CALIBRATION_RUN_S:g} s with the link down; --robot-cpu CORES skips this",
@@ -271,7 +290,7 @@ def quota_for_this_moment(run_testbed: str, args, run_dir: str) -> float:
                                 if args.record_inputs else []) + (
                                 ["--model", args.model] if args.model else []),
                             log=lambda line: print(PREFIX + line, flush=True))
-    return quotas.quota("robot_quota")
+    return quotas.quota("robot_quota"), quotas.found_at_ms("robot_quota")
 
 
 def normaliser_state(normaliser: CpuNormaliser) -> str:

@@ -227,7 +227,8 @@ def parse_args(argv, default_out: str):
                         "host's speed (a shared VM's drifts, and with it AMCL's rate at a fixed "
                         "quota, every node home: 3.18-1.77 Hz in 7 runs), so that the baselines "
                         "and the tests run on the same emulated robot; see run_testbed.py "
-                        "--help. Off by default; its first validation cut the robot by 40 %%: see the anyscale_testbed README. Runs already "
+                        "--help; relative to the host's speed at which each quota was found "
+                        "(--robot-cpu auto: its calibration run's). Off by default. Runs already "
                         "recorded in --out are not run again, with it or without: give it a "
                         "new --out")
     p.add_argument("--robot-cpu", default="auto", metavar="CORES|auto",
@@ -274,18 +275,21 @@ def recorded_exit_code(run_dir: str) -> int:
 
 
 def run_argv(run: PlannedRun, args, run_testbed: str, run_dir: str,
-             robot_cpu: Optional[float] = None) -> List[str]:
+             robot_cpu: Optional[float] = None, found_at_ms: Optional[float] = None) -> List[str]:
     """run_testbed.py's command line for one planned run; its link options last. robot_cpu:
-    the robot's quota (None: the calibration file's)."""
+    the robot's quota (None: the calibration file's); found_at_ms: the host speed it was found
+    at (with --normalise-cpu, the reference the quotas follow from)."""
     quota = ["--robot-cpu", f"{robot_cpu:g}"] if robot_cpu is not None else []
+    normalise = ["--normalise-cpu"] if args.normalise_cpu else []
+    if args.normalise_cpu and found_at_ms is not None:
+        normalise += ["--reference-cpu-ms", f"{found_at_ms:.3f}"]
     return ([sys.executable, run_testbed, "--world", args.world, "--duration", str(args.duration),
-             "--out", run_dir] + quota + (["--normalise-cpu"] if args.normalise_cpu else [])
-            + run.argv)
+             "--out", run_dir] + quota + normalise + run.argv)
 
 
 def run_one(run: PlannedRun, args, run_testbed: str, run_dir: str,
-            robot_cpu: Optional[float] = None) -> int:
-    code = run_logged(run_argv(run, args, run_testbed, run_dir, robot_cpu), run_dir)
+            robot_cpu: Optional[float] = None, found_at_ms: Optional[float] = None) -> int:
+    code = run_logged(run_argv(run, args, run_testbed, run_dir, robot_cpu, found_at_ms), run_dir)
     with open(os.path.join(run_dir, EXIT_CODE_FILE), "w") as f:
         f.write(f"{code}\n")
     return code
@@ -371,11 +375,12 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
                 print(f"[{k}/{len(todo)}] {run.key}: recorded already, not run again", flush=True)
                 continue
             robot_cpu = quotas.quota(calibration_key(run))
+            found_at_ms = quotas.found_at_ms(calibration_key(run))
             at = f", robot {robot_cpu:g} cores" if robot_cpu is not None else ""
             print(f"[{k}/{len(todo)}] {run.key}: {run.title}{at}, log {run_dir}/console.log",
                   flush=True)
             began = time.monotonic()
-            code = run_one(run, args, run_testbed, run_dir, robot_cpu)
+            code = run_one(run, args, run_testbed, run_dir, robot_cpu, found_at_ms)
             rec = latest_record(run_dir)
             done = (run_figures(run.title, run.kind, run.seed, code, rec, amcl_mbps)
                     if rec else None)

@@ -217,12 +217,15 @@ class CpuNormaliser(HostSpeedMonitor):
     says more about the measurement than about the host."""
 
     def __init__(self, quotas: Dict[str, object], calibrated: Dict[str, float],
-                 reference_cpu_ms: float, lowest_factor: float = 0.5,
+                 reference_cpu_ms: Optional[float], lowest_factor: float = 0.5,
                  highest_factor: float = 1.5, log_change: float = 0.05,
-                 host_cores: Optional[float] = None, **monitor):
+                 host_cores: Optional[float] = None, follow: bool = True, **monitor):
+        """follow=False: measure and keep the history, but leave the quotas as calibrated
+        (every run records its host's speed; reference_cpu_ms may then be None)."""
         super().__init__(**monitor)
-        if reference_cpu_ms <= 0:
+        if follow and not (reference_cpu_ms or 0) > 0:
             raise ValueError(f"reference_cpu_ms must be positive, got {reference_cpu_ms}")
+        self.follow = follow
         self.quotas = dict(quotas)
         self.calibrated = {scale: calibrated[scale] for scale in self.quotas}
         self.reference_cpu_ms = reference_cpu_ms
@@ -236,6 +239,10 @@ class CpuNormaliser(HostSpeedMonitor):
         self._failed: set = set()
 
     def on_median(self, t: float, median_ms: float):
+        if not self.follow:
+            self.history.append((t, self.cores.get("robot", 0.0),
+                                 self.cores.get("laptop", 0.0), median_ms))
+            return
         for scale, quota in self.quotas.items():
             cores = normalised_cores(self.calibrated[scale], self.reference_cpu_ms, median_ms,
                                      *self.bounds[scale])

@@ -131,7 +131,7 @@ class TestbedRecord:
 
 
 def store_cpu_normalisation(path: str, history: Sequence[Tuple[float, float, float, float]],
-                            reference_cpu_ms: float):
+                            reference_cpu_ms: Optional[float]):
     """Adds the quotas' history (wall-clock t, as host_speed.CpuNormaliser keeps it) to the
     record at `path`, on the record's clock. run_testbed.py calls it after the monitor, which
     writes the record, has ended; written whole and then renamed, as the monitor does."""

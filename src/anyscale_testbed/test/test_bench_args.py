@@ -160,3 +160,51 @@ def test_the_tolerance_bench_normalises_from_each_calibrations_host_speed(tolera
     assert not any("--normalise-cpu" in a for a in argvs if a not in runs)
     assert "| run01-calibration | 0.288 | 0.34 cores: 2.82 Hz, 0.288 cores: 2.21 Hz | 12.0 |" in (
         out / "tolerances.md").read_text()
+
+
+def test_the_host_speed_bench_alternates_fixed_and_normalised_runs_at_the_calibrated_quota(
+        tmp_path, monkeypatch, capsys):
+    from anyscale_testbed import quota_for_the_day
+    from test_evaluation_table import on, record
+    bench = load_bench("bench_host_speed")
+    argvs = []
+
+    def fake_run(argv, out_dir):
+        """AMCL 2 Hz at home at 0.27 cores, 2.82 at 0.34, the host timed at 12 ms; fixed runs
+        read 1.9 Hz, normalised ones 2.1 (a made-up effect, to follow it through)."""
+        argvs.append(argv)
+        quota = float(argv[argv.index("--robot-cpu") + 1])
+        hz = 2.0 * (quota - 0.10) / 0.17
+        if "calibration" not in out_dir:
+            hz = 2.1 if "--normalise-cpu" in argv else 1.9
+        rec = record(mappings=[(0.0, on(), 0.0, 0.0)], amcl_hz=hz)
+        rec.cpu_normalisation = [(60.0, quota, 0.9, 12.0)]
+        os.makedirs(os.path.join(out_dir, "office_floor-fake"))
+        rec.save(os.path.join(out_dir, "office_floor-fake", "record.json"))
+        return 0
+    monkeypatch.setattr(bench, "run_logged", fake_run)
+    monkeypatch.setattr(quota_for_the_day, "run_logged", fake_run)
+    monkeypatch.setattr(quota_for_the_day, "quota_cores", lambda robot, laptop: (0.34, 0.9))
+    monkeypatch.setattr(bench, "start_on_the_testbed", lambda program: None)
+    assert bench.main(["--rounds", "2", "--out", str(tmp_path)]) == 0
+    runs = [a for a in argvs if "calibration" not in a[a.index("--out") + 1]]
+    assert ["--normalise-cpu" in a for a in runs] == [False, True, True, False]
+    assert all(a[a.index("--robot-cpu") + 1] == "0.288" for a in runs)
+    assert all(a[a.index("--reference-cpu-ms") + 1] == "12.000" for a in runs
+               if "--normalise-cpu" in a)
+    assert all(a[a.index("--schedule") + 1] == "[[0, 0]]" for a in runs)     # every node home
+    printed = capsys.readouterr().out
+    # Calibrated at 2.21 Hz: fixed runs 0.31 Hz off, normalised 0.11: the ratio 0.35.
+    assert "normalised / fixed, mean deviation from the calibrated rate: 0.35" in printed
+    assert (tmp_path / "host_speed.md").exists()
+
+
+def test_the_host_speed_bench_refuses_a_given_quota_without_its_host_speed(capsys):
+    bench = load_bench("bench_host_speed")
+    assert bench.parse_args(["--robot-cpu", "0.25", "--reference-cpu-ms", "11"]).robot_cpu == 0.25
+    for argv, said in ((["--robot-cpu", "0.25"], "go together"),
+                       (["--rounds", "0"], "--rounds: expected 1 to 50"),
+                       (["--duration", "40"], "--duration: expected more than")):
+        with pytest.raises(SystemExit) as ended:
+            bench.parse_args(argv)
+        assert ended.value.code == 2 and said in capsys.readouterr().err

@@ -24,6 +24,12 @@ quota, which the agents' own work in the profile's set-up moves, and the second 
 own cost; profile names such a figure a share (profile_plan.py). Where the scale has room both
 should agree.
 
+This host is a shared VM whose CPU-second does more or less work from minute to minute (the
+host-speed workload of anyscale_testbed/host_speed.py: 6.6-16.5 ms of CPU at different times),
+and the same node's CPU moves with it. Both sides time that workload while they measure (this
+process during the profile, bench_cpu_calibration.py during each step), and each ratio is also
+given at equal host speed: x calibration's ms / profile's ms. The raw ratios stay beside them.
+
     sudo -E /usr/bin/python3 tests/bench/bench_profile.py
     sudo -E /usr/bin/python3 tests/bench/bench_profile.py --warmup 10 --window 60 --robot-cpu 0.37
 """
@@ -45,6 +51,7 @@ sys.path.insert(0, os.path.join(ROOT, "src", "anyscale_testbed", "src"))
 from anyscale_testbed.testbed_session import (LoopbackBed, NamespaceBed,  # noqa: E402
                                               TestbedSession, layout_with_cpu)
 from anyscale_testbed.bench_runs import run_logged  # noqa: E402
+from anyscale_testbed.host_speed import HostSpeedMonitor  # noqa: E402
 from anyscale_testbed.two_scale_testbed import missing_capabilities  # noqa: E402
 
 DEMO = os.path.join(ROOT, "src", "anyscale_nav_demo")
@@ -123,22 +130,29 @@ def main(argv=None) -> int:
                                       "--window", str(args.window), "--json"],
                             session.env("robot"), None, cpu_quota=False,
                             stdout=subprocess.PIPE)
-        stdout, _ = profile.communicate()
+        # Outside both quotas, while the profile runs: the host speed its figures are at.
+        with HostSpeedMonitor(period_s=5.0, window=10000, initial_samples=1, log=log) as host:
+            stdout, _ = profile.communicate()
+        profile_ms = host.median.value
     if profile.returncode != 0:
         log(f"anyscale profile failed (exit {profile.returncode}); logs in {out}/logs")
         return 1
     result = json_at_end(stdout.decode(errors="replace"))
     with open(os.path.join(out, "profile.json"), "w") as f:
         json.dump(result, f, indent=2)
-    calibrated = {} if args.no_calibration else calibration_side_by_side(robot_cpu, laptop_cpu,
-                                                                          out)
+    calibrated, calibrated_ms = ({}, {}) if args.no_calibration else calibration_side_by_side(
+        robot_cpu, laptop_cpu, out)
     with open(MODEL) as f:
         paper = {n["name"]: n["cpu_usage"] for n in yaml.safe_load(f)["nodes"]}
+    log(f"host speed (workload ms of CPU): "
+        f"{'-' if profile_ms is None else f'{profile_ms:.1f}'} during the profile, "
+        + ", ".join(f"{scale} step {ms:.1f}" for scale, ms in calibrated_ms.items())
+        + " during the calibration")
     print("\n| node | scale | profile: % of the scale (its capacity), scale busy | % of one "
           "core (sd) | output | ms of CPU per message | testbed.yaml (paper) | "
           "bench_cpu_calibration: % of one core, output, ms per message | profile / "
-          "calibration: CPU | per message |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "calibration: CPU | per message | both at equal host speed |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for m in result["measurements"]:
         topic, hz = next(iter(m["output_rates_hz"].items()), ("-", float("nan")))
         cpu = m["cpu_percent_of_one_core"]
@@ -148,11 +162,13 @@ def main(argv=None) -> int:
         busy = m.get("scale_busy_percent")
         busy = "-" if busy is None else f"{busy:.0f} %" + (", its limit" if m["saturated"]
                                                           else "")
+        speed = host_speed_factor(calibrated_ms.get(m["scale"], nan), profile_ms)
         print(f"| {m['node']} | {m['scale']} | {m['cpu_usage']:g} % ({m['capacity_cores']:g} "
               f"cores), {busy} | {cpu:.1f} ({m['cpu_sd']:.1f}) | {topic} {hz:.2f} Hz | "
               f"{ms:.1f} | {paper[m['node']].get(m['scale'], '-')} % | {cal_cpu:.1f}, "
               f"{cal_hz:.2f} Hz, {cal_ms:.1f} | {ratio(cpu, cal_cpu):.2f} | "
-              f"{ratio(ms, cal_ms):.2f} |")
+              f"{ratio(ms, cal_ms):.2f} | {ratio(cpu, cal_cpu) * speed:.2f}, "
+              f"{ratio(ms, cal_ms) * speed:.2f} |")
     print(f"\nmemory_mb: {result['memory_mb']}; model with the figures: {model}")
     return 0
 
@@ -169,10 +185,20 @@ def ratio(a: float, b: float) -> float:
     return a / b if b > 0 else nan
 
 
-def calibration_side_by_side(robot_cpu: float, laptop_cpu: float, out: str) -> dict:
+def host_speed_factor(calibration_ms: float, profile_ms) -> float:
+    """What a profile / calibration ratio is multiplied by to compare the two at equal host
+    speed: a node's CPU for the same work grows with the workload's ms (a slower CPU-second),
+    so calibration_ms / profile_ms; NaN where either is unknown."""
+    if profile_ms is None or not (profile_ms > 0 and calibration_ms > 0):
+        return nan
+    return calibration_ms / profile_ms
+
+
+def calibration_side_by_side(robot_cpu: float, laptop_cpu: float, out: str) -> tuple:
     """bench_cpu_calibration.py at the same quotas, right after the profile: {(node, scale):
-    (% of one core, output Hz)}; {} (and a line) if it fails. Its robot case has every node in
-    the robot's group, its laptop case AMCL and AR together in the laptop's."""
+    (% of one core, output Hz)} and {scale: the host-speed workload's ms during that step};
+    ({}, {}) (and a line) if it fails. Its robot case has every node in the robot's group, its
+    laptop case AMCL and AR together in the laptop's."""
     path = os.path.join(out, "cpu_calibration.json")
     log_dir = os.path.join(out, "cpu_calibration")
     log(f"bench_cpu_calibration.py at the same quotas (robot {robot_cpu:g}, laptop "
@@ -187,10 +213,11 @@ def calibration_side_by_side(robot_cpu: float, laptop_cpu: float, out: str) -> d
         robot, laptop = steps["robot"][0], steps["laptop"][0]
     except (OSError, ValueError, KeyError, IndexError) as e:
         log(f"bench_cpu_calibration.py gave no figures (exit {code}: {e})")
-        return {}
-    return {(n, scale): (float(step["cpu"][n]), float(step["rates"].get(OUTPUT[n], nan)))
-            for n in OUTPUT for scale, step in (("robot", robot), ("laptop", laptop))
-            if n in step["cpu"]}
+        return {}, {}
+    steps = (("robot", robot), ("laptop", laptop))
+    return ({(n, scale): (float(step["cpu"][n]), float(step["rates"].get(OUTPUT[n], nan)))
+             for n in OUTPUT for scale, step in steps if n in step["cpu"]},
+            {scale: float(step.get("host_ms") or nan) for scale, step in steps})
 
 
 if __name__ == "__main__":

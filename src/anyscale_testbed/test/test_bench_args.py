@@ -208,3 +208,26 @@ def test_the_host_speed_bench_refuses_a_given_quota_without_its_host_speed(capsy
         with pytest.raises(SystemExit) as ended:
             bench.parse_args(argv)
         assert ended.value.code == 2 and said in capsys.readouterr().err
+
+
+def test_the_profile_bench_compares_at_equal_host_speed(tmp_path, monkeypatch):
+    import json
+    import math
+    bench = load_bench("bench_profile")
+    # The profile ran while the workload took 7.7 ms, the calibration at 7.0: the host was 10 %
+    # slower during the profile, so its figures are scaled by 7.0 / 7.7 to compare.
+    assert bench.host_speed_factor(7.0, 7.7) == pytest.approx(0.909, abs=1e-3)
+    assert math.isnan(bench.host_speed_factor(7.0, None))
+    assert math.isnan(bench.host_speed_factor(float("nan"), 7.7))
+
+    def fake_calibration(argv, log_dir):
+        step = {"cpu": {"amcl": 7.7, "ar_recognition": 18.4}, "host_ms": 6.9,
+                "rates": {"/amcl_pose": 4.2, "/ar_markers": 17.7}}
+        laptop = dict(step, host_ms=None)
+        with open(argv[argv.index("--json") + 1], "w") as f:
+            json.dump({"robot": [step], "laptop": [laptop]}, f)
+        return 0
+    monkeypatch.setattr(bench, "run_logged", fake_calibration)
+    figures, host_ms = bench.calibration_side_by_side(0.34, 0.9, str(tmp_path))
+    assert figures[("amcl", "robot")] == (7.7, 4.2)
+    assert host_ms["robot"] == 6.9 and math.isnan(host_ms["laptop"])

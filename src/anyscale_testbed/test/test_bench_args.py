@@ -12,6 +12,27 @@ BENCH_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..",
                          "bench")
 
 
+def fake_testbed(argvs, host_ms=None, home_hz=None):
+    """A run_logged for the benches' runs on a machine on which AMCL with every node home runs
+    2 Hz at 0.27 cores and 2.82 Hz at 0.34: records the command line in `argvs` and saves a
+    record of every node home. host_ms(argvs): the host speed the run timed (none if None);
+    home_hz(argv, out_dir): another rate for some runs (None: the machine's)."""
+    from test_evaluation_table import on, record
+
+    def run(argv, out_dir):
+        argvs.append(argv)
+        quota = float(argv[argv.index("--robot-cpu") + 1])
+        hz = home_hz(argv, out_dir) if home_hz else None
+        rec = record(mappings=[(0.0, on(), 0.0, 0.0)],
+                     amcl_hz=hz if hz is not None else 2.0 * (quota - 0.10) / 0.17)
+        if host_ms is not None:
+            rec.cpu_normalisation = [(60.0, quota, 0.9, host_ms(argvs))]
+        os.makedirs(os.path.join(out_dir, "office_floor-fake"))
+        rec.save(os.path.join(out_dir, "office_floor-fake", "record.json"))
+        return 0
+    return run
+
+
 def load_bench(name):
     spec = importlib.util.spec_from_file_location(name, os.path.join(BENCH_DIR, f"{name}.py"))
     module = importlib.util.module_from_spec(spec)
@@ -100,17 +121,8 @@ def test_the_benches_help_prints_and_exits_0(bench, capsys):
 def test_the_tolerance_bench_finds_the_quota_before_each_run(tolerances, tmp_path, monkeypatch,
                                                              capsys):
     from anyscale_testbed import quota_for_the_day
-    from test_evaluation_table import on, record
     argvs = []
-
-    def fake_run(argv, out_dir):
-        """A machine on which AMCL runs 2 Hz at home at 0.27 cores, 2.82 Hz at 0.34."""
-        argvs.append(argv)
-        quota = float(argv[argv.index("--robot-cpu") + 1])
-        rec = record(mappings=[(0.0, on(), 0.0, 0.0)], amcl_hz=2.0 * (quota - 0.10) / 0.17)
-        os.makedirs(os.path.join(out_dir, "office_floor-fake"))
-        rec.save(os.path.join(out_dir, "office_floor-fake", "record.json"))
-        return 0
+    fake_run = fake_testbed(argvs)
     monkeypatch.setattr(tolerances, "run_logged", fake_run)
     monkeypatch.setattr(quota_for_the_day, "run_logged", fake_run)
     monkeypatch.setattr(quota_for_the_day, "quota_cores", lambda robot, laptop: (0.34, 0.9))
@@ -134,18 +146,8 @@ def test_the_tolerance_bench_finds_the_quota_before_each_run(tolerances, tmp_pat
 def test_the_tolerance_bench_normalises_from_each_calibrations_host_speed(tolerances, tmp_path,
                                                                           monkeypatch):
     from anyscale_testbed import quota_for_the_day
-    from test_evaluation_table import on, record
     argvs = []
-
-    def fake_run(argv, out_dir):
-        """AMCL 2 Hz at home at 0.27 cores; each run timed the host at 10 ms + 1 per run."""
-        argvs.append(argv)
-        quota = float(argv[argv.index("--robot-cpu") + 1])
-        rec = record(mappings=[(0.0, on(), 0.0, 0.0)], amcl_hz=2.0 * (quota - 0.10) / 0.17)
-        rec.cpu_normalisation = [(60.0, quota, 0.9, 10.0 + len(argvs))]
-        os.makedirs(os.path.join(out_dir, "office_floor-fake"))
-        rec.save(os.path.join(out_dir, "office_floor-fake", "record.json"))
-        return 0
+    fake_run = fake_testbed(argvs, host_ms=lambda runs: 10.0 + len(runs))   # 11, 12, 13 ms...
     monkeypatch.setattr(tolerances, "run_logged", fake_run)
     monkeypatch.setattr(quota_for_the_day, "run_logged", fake_run)
     monkeypatch.setattr(quota_for_the_day, "quota_cores", lambda robot, laptop: (0.34, 0.9))
@@ -165,23 +167,12 @@ def test_the_tolerance_bench_normalises_from_each_calibrations_host_speed(tolera
 def test_the_host_speed_bench_alternates_fixed_and_normalised_runs_at_the_calibrated_quota(
         tmp_path, monkeypatch, capsys):
     from anyscale_testbed import quota_for_the_day
-    from test_evaluation_table import on, record
     bench = load_bench("bench_host_speed")
     argvs = []
-
-    def fake_run(argv, out_dir):
-        """AMCL 2 Hz at home at 0.27 cores, 2.82 at 0.34, the host timed at 12 ms; fixed runs
-        read 1.9 Hz, normalised ones 2.1 (a made-up effect, to follow it through)."""
-        argvs.append(argv)
-        quota = float(argv[argv.index("--robot-cpu") + 1])
-        hz = 2.0 * (quota - 0.10) / 0.17
-        if "calibration" not in out_dir:
-            hz = 2.1 if "--normalise-cpu" in argv else 1.9
-        rec = record(mappings=[(0.0, on(), 0.0, 0.0)], amcl_hz=hz)
-        rec.cpu_normalisation = [(60.0, quota, 0.9, 12.0)]
-        os.makedirs(os.path.join(out_dir, "office_floor-fake"))
-        rec.save(os.path.join(out_dir, "office_floor-fake", "record.json"))
-        return 0
+    # The host timed at 12 ms; fixed runs read 1.9 Hz, normalised ones 2.1 (a made-up effect,
+    # to follow it through).
+    fake_run = fake_testbed(argvs, host_ms=lambda runs: 12.0, home_hz=lambda argv, out_dir: (
+        None if "calibration" in out_dir else 2.1 if "--normalise-cpu" in argv else 1.9))
     monkeypatch.setattr(bench, "run_logged", fake_run)
     monkeypatch.setattr(quota_for_the_day, "run_logged", fake_run)
     monkeypatch.setattr(quota_for_the_day, "quota_cores", lambda robot, laptop: (0.34, 0.9))

@@ -18,7 +18,8 @@ lowest rate, the longest silence against AMCL's Δ of 2 s), and the ratio of the
 deviations (normalised / fixed: below 1, normalising holds the premise closer).
 
     sudo -E /usr/bin/python3 tests/bench/bench_host_speed.py --rounds 6
-    sudo -E /usr/bin/python3 tests/bench/bench_host_speed.py --rounds 2 --duration 120 --robot-cpu 0.25
+    sudo -E /usr/bin/python3 tests/bench/bench_host_speed.py --rounds 2 --duration 120 \\
+        --robot-cpu 0.25 --reference-cpu-ms 7
 """
 import argparse
 import datetime

@@ -43,9 +43,11 @@ def record(amcl_at="laptop", silent=(), unlisted=(), ghost=()):
     return rec
 
 
-def census(amcl=lambda t: ["laptop"], supervisors=lambda t: ALL_UP, processes=lambda t: 20):
+def census(amcl=lambda t: ["laptop"], supervisors=lambda t: ALL_UP, processes=lambda t: 20,
+           standbys=lambda t: []):
     return [CensusSample(t, {"amcl": amcl(t), "ekf": ["robot"]}, dict(supervisors(t)),
-                         processes(t)) for t in (i * 0.5 for i in range(int(END / 0.5)))]
+                         processes(t), standbys=standbys(t))
+            for t in (i * 0.5 for i in range(int(END / 0.5)))]
 
 
 def fault(kind, t, hold=0.0, **kw):
@@ -315,6 +317,23 @@ def test_processes_started_before_the_first_fault_are_no_leak():
     settling = census(processes=lambda t: 18 if t < 6.5 else 20)
     assert process_leak(settling, record(), MODEL, 0.0)      # counted from the start: a leak
     assert process_leak(settling, record(), MODEL, 10.0) == []
+
+
+def test_a_standby_prepared_since_is_no_leak_but_a_second_one_of_an_instance_is():
+    # The soak of 2026-11-27 (seed 2): the laptop's AMCL standby prepared after its first
+    # sample at this placement, 30 processes at the end against 29.
+    prepared = census(processes=lambda t: 29 if t < 50 else 30,
+                      standbys=lambda t: ["amcl /robot"] + (["amcl__laptop /laptop"] if t >= 50
+                                                            else []))
+    assert process_leak(prepared, record(), MODEL, 0.0) == []
+    doubled = census(processes=lambda t: 29 if t < 50 else 30,
+                     standbys=lambda t: ["amcl /robot"] * (2 if t >= 50 else 1))
+    [leak] = process_leak(doubled, record(), MODEL, 0.0)
+    assert "two or more of amcl /robot" in leak
+    # A node process more, standbys alike: still a leak.
+    grown = census(processes=lambda t: 29 if t < 50 else 30, standbys=lambda t: ["amcl /robot"])
+    [leak] = process_leak(grown, record(), MODEL, 0.0)
+    assert leak.startswith("29 processes of the ROS system besides warm standbys")
 
 
 def test_the_table_and_its_copies(tmp_path):

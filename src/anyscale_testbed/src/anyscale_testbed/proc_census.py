@@ -7,6 +7,25 @@ from typing import List, Optional, Tuple
 
 from .testbed_teardown import is_alive
 
+# A warm standby (anyscale_agent_cpp's python_standby) carries its node's command line but is
+# no instance of it: its comm is "python_standby" from its exec until it renames itself, then
+# "standby:..." while it waits to become the node.
+STANDBY_EXEC_COMM = b"python_standby"
+STANDBY_COMM_PREFIX = b"standby:"
+
+
+def is_standby_comm(comm: bytes) -> bool:
+    return comm == STANDBY_EXEC_COMM or comm.startswith(STANDBY_COMM_PREFIX)
+
+
+def is_standby(pid: int) -> bool:
+    """Whether a process is a warm standby (False if it is gone)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            return is_standby_comm(f.read().split(b"(", 1)[1].rsplit(b")", 1)[0])
+    except (OSError, IndexError):
+        return False
+
 
 def processes_with_master(master_uri: str) -> List[int]:
     """Live processes whose environment names `master_uri` (what a test bed leaves behind if

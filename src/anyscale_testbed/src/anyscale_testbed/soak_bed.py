@@ -13,7 +13,8 @@ from typing import Dict, List, Optional, Tuple
 
 from . import fault_schedule as fs
 from .link_shaper import LinkSetting, apply_setting
-from .proc_census import cpu_usage, master_processes, memory_and_fds, processes_with_master
+from .proc_census import (cpu_usage, is_standby, master_processes, memory_and_fds,
+                          processes_with_master)
 from .soak_growth import ResourceSample
 from .soak_invariants import CensusSample
 from .testbed_monitor_ros import node_processes
@@ -60,13 +61,15 @@ class Sampler(threading.Thread):
                     resources.append(ResourceSample(now, role, pid, used[0], used[1]))
         supervisors["master"] = len(master_processes(self.master_uri))
         system = processes_with_master(self.master_uri)
-        cpu = []
+        cpu, standbys = [], []
         for pid in system:
             used = cpu_usage(pid)
             if used is not None:
                 cpu.append((used[0], used[1], pid, used[2]))
+                if is_standby(pid):
+                    standbys.append(f"{used[0]} {used[1]}")     # its instance, its group
         sample = CensusSample(now, {n: sorted(s) for n, s in instances.items()}, supervisors,
-                              len(system), cpu)
+                              len(system), cpu, sorted(standbys))
         with self.lock:
             self.census.append(sample)
             self.resources += resources

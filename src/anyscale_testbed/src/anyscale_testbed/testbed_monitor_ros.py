@@ -28,14 +28,11 @@ from anyscale_core.model import ModelError
 from anyscale_core.model_loader import load_model
 from anyscale_core.ros_convert import EVENT_NAMES
 
+from .proc_census import is_standby_comm
 from .testbed_figures import colour_violations, format_summary, tolerance_violations
 from .testbed_record import (DECISION_PARAMS, EventRecord, ProcessSample, TestbedRecord,
                              save_record)
 
-
-# python_standby's comm from its exec until it renames itself, and while it waits.
-STANDBY_EXEC_COMM = b"python_standby"
-STANDBY_COMM_PREFIX = b"standby:"
 
 
 def say(line: str):
@@ -68,8 +65,7 @@ def node_processes(instances: Dict[str, str], master_uri: str,
             with open(f"/proc/{pid}/stat", "rb") as f:
                 stat = f.read()
             comm, state = stat.split(b"(", 1)[1].rsplit(b")", 1)
-            if state.split()[0] == b"Z" or comm == STANDBY_EXEC_COMM or \
-                    comm.startswith(STANDBY_COMM_PREFIX):
+            if state.split()[0] == b"Z" or is_standby_comm(comm):
                 continue            # a zombie or a standby publishes nothing
             if state.split()[0] == b"T":
                 if paused is not None:

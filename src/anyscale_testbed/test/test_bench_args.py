@@ -33,6 +33,18 @@ def fake_testbed(argvs, host_ms=None, home_hz=None):
     return run
 
 
+def on_fake_testbed(bench, monkeypatch, fake_run):
+    """The bench's runs and its calibration's go to fake_run, on a machine whose calibration
+    file says 0.34 / 0.9 cores and whose world has 5 goals."""
+    from anyscale_testbed import quota_for_the_day
+    monkeypatch.setattr(bench, "run_logged", fake_run)
+    monkeypatch.setattr(quota_for_the_day, "run_logged", fake_run)
+    monkeypatch.setattr(quota_for_the_day, "quota_cores", lambda robot, laptop: (0.34, 0.9))
+    monkeypatch.setattr(bench, "start_on_the_testbed", lambda program: None)
+    if hasattr(bench, "goal_count"):
+        monkeypatch.setattr(bench, "goal_count", lambda world: 5)
+
+
 def load_bench(name):
     spec = importlib.util.spec_from_file_location(name, os.path.join(BENCH_DIR, f"{name}.py"))
     module = importlib.util.module_from_spec(spec)
@@ -120,14 +132,8 @@ def test_the_benches_help_prints_and_exits_0(bench, capsys):
 
 def test_the_tolerance_bench_finds_the_quota_before_each_run(tolerances, tmp_path, monkeypatch,
                                                              capsys):
-    from anyscale_testbed import quota_for_the_day
     argvs = []
-    fake_run = fake_testbed(argvs)
-    monkeypatch.setattr(tolerances, "run_logged", fake_run)
-    monkeypatch.setattr(quota_for_the_day, "run_logged", fake_run)
-    monkeypatch.setattr(quota_for_the_day, "quota_cores", lambda robot, laptop: (0.34, 0.9))
-    monkeypatch.setattr(tolerances, "start_on_the_testbed", lambda program: None)
-    monkeypatch.setattr(tolerances, "goal_count", lambda world: 5)
+    on_fake_testbed(tolerances, monkeypatch, fake_testbed(argvs))
     out = tmp_path / "bench"
     tolerances.main(["--runs", "2", "--out", str(out)])
     assert [os.path.relpath(a[a.index("--out") + 1], out) for a in argvs] == [
@@ -145,14 +151,9 @@ def test_the_tolerance_bench_finds_the_quota_before_each_run(tolerances, tmp_pat
 
 def test_the_tolerance_bench_normalises_from_each_calibrations_host_speed(tolerances, tmp_path,
                                                                           monkeypatch):
-    from anyscale_testbed import quota_for_the_day
     argvs = []
-    fake_run = fake_testbed(argvs, host_ms=lambda runs: 10.0 + len(runs))   # 11, 12, 13 ms...
-    monkeypatch.setattr(tolerances, "run_logged", fake_run)
-    monkeypatch.setattr(quota_for_the_day, "run_logged", fake_run)
-    monkeypatch.setattr(quota_for_the_day, "quota_cores", lambda robot, laptop: (0.34, 0.9))
-    monkeypatch.setattr(tolerances, "start_on_the_testbed", lambda program: None)
-    monkeypatch.setattr(tolerances, "goal_count", lambda world: 5)
+    on_fake_testbed(tolerances, monkeypatch,
+                    fake_testbed(argvs, host_ms=lambda runs: 10.0 + len(runs)))  # 11, 12 ms...
     out = tmp_path / "bench"
     tolerances.main(["--runs", "2", "--normalise-cpu", "--out", str(out)])
     runs = [a for a in argvs if "calibration" not in a[a.index("--out") + 1]]
@@ -166,17 +167,13 @@ def test_the_tolerance_bench_normalises_from_each_calibrations_host_speed(tolera
 
 def test_the_host_speed_bench_alternates_fixed_and_normalised_runs_at_the_calibrated_quota(
         tmp_path, monkeypatch, capsys):
-    from anyscale_testbed import quota_for_the_day
     bench = load_bench("bench_host_speed")
     argvs = []
     # The host timed at 12 ms; fixed runs read 1.9 Hz, normalised ones 2.1 (a made-up effect,
     # to follow it through).
     fake_run = fake_testbed(argvs, host_ms=lambda runs: 12.0, home_hz=lambda argv, out_dir: (
         None if "calibration" in out_dir else 2.1 if "--normalise-cpu" in argv else 1.9))
-    monkeypatch.setattr(bench, "run_logged", fake_run)
-    monkeypatch.setattr(quota_for_the_day, "run_logged", fake_run)
-    monkeypatch.setattr(quota_for_the_day, "quota_cores", lambda robot, laptop: (0.34, 0.9))
-    monkeypatch.setattr(bench, "start_on_the_testbed", lambda program: None)
+    on_fake_testbed(bench, monkeypatch, fake_run)
     assert bench.main(["--rounds", "2", "--out", str(tmp_path)]) == 0
     runs = [a for a in argvs if "calibration" not in a[a.index("--out") + 1]]
     assert ["--normalise-cpu" in a for a in runs] == [False, True, True, False]

@@ -5,19 +5,13 @@ its own life (a process respawned mid-soak is judged from its start).
 Every time here is on the record's clock (s since the monitor started)."""
 from dataclasses import dataclass
 import statistics
-from typing import Callable, Dict, Hashable, List, Optional, Sequence, Tuple
+from typing import Dict, List, Sequence, Tuple
 
 # Growth: a process sampled for at least MIN_SPAN_S after its first WARMUP_S (imports,
 # connections being made) is judged on the median of its last third against its first third.
 # 30 s is 60 samples, 20 in a third, at the census's 2 Hz: enough for a median, and short
 # enough that an agent or decision node respawned mid-soak, and the CI soak's processes, are
 # judged too. A process sampled for less is named as not judged (unjudged_growth).
-# Only samples taken while the system was in the same state as at the process's last sample
-# count (`state_at`: where each node has a live instance): a process holds a connection to
-# each publisher of what it subscribes to, so its descriptors follow the instances that run
-# (the decision node of the soak of 2026-11-27, seed 3, had 22 with every node home and 27
-# after AMCL and AR had moved out and back within 20 s, their laptop instances still alive on
-# their leases).
 WARMUP_S = 20.0
 MIN_SPAN_S = 30.0
 RSS_GROWTH_MB = 5.0
@@ -46,13 +40,11 @@ class Growth:
     grew: List[str]         # what grew, in words; empty if nothing did
 
 
-def growth(samples: Sequence[ResourceSample],
-           state_at: Optional[Callable[[float], Hashable]] = None) -> List[Growth]:
+def growth(samples: Sequence[ResourceSample]) -> List[Growth]:
     """For each process (role and pid) sampled long enough: its memory and file descriptors,
-    first third against last third (medians) after its warm-up, and whether they grew. With
-    `state_at` (t -> the system's state), only its samples in the state of its last one."""
+    first third against last third (medians) after its warm-up, and whether they grew."""
     out = []
-    for (role, pid), judged in sorted(_after_warmup(samples, state_at).items()):
+    for (role, pid), judged in sorted(_after_warmup(samples).items()):
         if _span(judged) < MIN_SPAN_S:
             continue
         third = len(judged) // 3
@@ -70,34 +62,23 @@ def growth(samples: Sequence[ResourceSample],
     return out
 
 
-def unjudged_growth(samples: Sequence[ResourceSample],
-                    state_at: Optional[Callable[[float], Hashable]] = None) -> List[str]:
+def unjudged_growth(samples: Sequence[ResourceSample]) -> List[str]:
     """The processes growth() leaves out, in words: sampled too briefly after their warm-up
-    (e.g. killed by the soak soon after their start), or in the state of their last sample."""
-    where = (" with the nodes' instances where they were at its last sample" if state_at
-             else "")
+    (e.g. killed by the soak soon after their start)."""
     return [f"growth of {role} pid {pid}: sampled {_span(judged):.0f} s after its "
-            f"{WARMUP_S:g} s warm-up{where}, judged from {MIN_SPAN_S:g} s"
-            for (role, pid), judged in sorted(_after_warmup(samples, state_at).items())
+            f"{WARMUP_S:g} s warm-up, judged from {MIN_SPAN_S:g} s"
+            for (role, pid), judged in sorted(_after_warmup(samples).items())
             if _span(judged) < MIN_SPAN_S]
 
 
-def _after_warmup(samples: Sequence[ResourceSample],
-                  state_at: Optional[Callable[[float], Hashable]] = None
-                  ) -> Dict[Tuple[str, int], List[ResourceSample]]:
-    """(role, pid) -> its samples after its first WARMUP_S, in time order; with state_at, only
-    those in the state of its last sample."""
+def _after_warmup(samples: Sequence[ResourceSample]) -> Dict[Tuple[str, int],
+                                                              List[ResourceSample]]:
+    """(role, pid) -> its samples after its first WARMUP_S, in time order."""
     by_process: Dict[Tuple[str, int], List[ResourceSample]] = {}
     for s in sorted(samples, key=lambda s: s.t):
         by_process.setdefault((s.role, s.pid), []).append(s)
-    out = {}
-    for key, series in by_process.items():
-        judged = [s for s in series if s.t >= series[0].t + WARMUP_S]
-        if state_at is not None and judged:
-            last = state_at(judged[-1].t)
-            judged = [s for s in judged if state_at(s.t) == last]
-        out[key] = judged
-    return out
+    return {key: [s for s in series if s.t >= series[0].t + WARMUP_S]
+            for key, series in by_process.items()}
 
 
 def _span(series: Sequence[ResourceSample]) -> float:

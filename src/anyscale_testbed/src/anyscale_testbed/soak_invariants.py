@@ -24,10 +24,9 @@ The invariants (issue 15):
   decision node, the master) runs once, every node runs once where the mapping places it,
   every output has spoken since the fault ended, and the master lists a publisher for it;
 - nothing left behind at the end (and no growth of memory or file descriptors: soak_growth.py)."""
-import bisect
 from dataclasses import dataclass, field
 import math
-from typing import Callable, Dict, List, Optional, Sequence, Set, Tuple
+from typing import Dict, List, Optional, Sequence, Set, Tuple
 
 from .fault_schedule import Fault
 from .soak_silences import charged_to, silence_violations, worst_silence
@@ -304,20 +303,6 @@ def fixed_node_violations(census: Sequence[CensusSample], rec: TestbedRecord,
                 found.setdefault((node, "process"), (s.t, f"{node} ran on {away[0]} at "
                                                           f"t={s.t:.1f} s (it may not move)"))
     return sorted(found.values())
-
-
-def live_instances_at(census: Sequence[CensusSample]) -> Callable[[float], tuple]:
-    """t -> where each node had a live instance at the census's last sample up to t (its first
-    before it): the system's state that soak_growth compares a process's samples in."""
-    times = [s.t for s in census]
-    states = [tuple(sorted((n, tuple(scales)) for n, scales in s.instances.items()))
-              for s in census]
-
-    def at(t: float) -> tuple:
-        if not states:
-            return ()
-        return states[max(bisect.bisect_right(times, t) - 1, 0)]
-    return at
 
 
 def process_leak(census: Sequence[CensusSample], rec: TestbedRecord,

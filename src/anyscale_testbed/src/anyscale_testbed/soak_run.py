@@ -36,8 +36,7 @@ from .proc_census import processes_with_master
 from .soak_bed import Injector, Sampler, describe_state
 from .soak_growth import ResourceSample, growth, unjudged_growth
 from .soak_cpu import cpu_during, describe_cpu
-from .soak_invariants import (CensusSample, InjectedFault, SoakModel, judge_faults,
-                              live_instances_at, process_leak)
+from .soak_invariants import CensusSample, InjectedFault, SoakModel, judge_faults, process_leak
 from .soak_silences import silence_violations, startup_silences, unchecked
 from .soak_report import format_markdown, format_table, verdict_ok, write_csv
 from .testbed_record import TestbedRecord
@@ -297,10 +296,8 @@ def judge(out: str, data: dict, rec: TestbedRecord, soak: SoakModel) -> int:
     outcomes = judge_faults(faults, census, rec, soak, end_t)
     left = list(data["leaks"]) + process_leak(census, rec, soak,
                                                 min((f.t for f in faults), default=0.0))
-    state_at = live_instances_at(census)
-    growths = growth(resources, state_at)
-    missed = (unchecked(rec) + startup_silences(faults, rec)
-              + unjudged_growth(resources, state_at))
+    growths = growth(resources)
+    missed = unchecked(rec) + startup_silences(faults, rec) + unjudged_growth(resources)
     quotas = {group: tuple(q) for group, q in data.get("quotas", {}).items()}
     cpu = [f"CPU while {text}: {describe_cpu(*cpu_during(census, v.start_t, v.end_t), quotas)}"
            for v, text in silence_violations(rec)]

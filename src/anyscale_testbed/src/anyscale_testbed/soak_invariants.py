@@ -50,9 +50,9 @@ class CensusSample:
     supervisors: Dict[str, int]          # role (SUPERVISORS) -> live processes
     processes: int = 0                   # every live process of this ROS system
     cpu: List[Tuple[str, str, int, float]] = field(default_factory=list)   # soak_cpu.py
-    # "<instance name> <CPU group>" of each warm standby among `processes` (none recorded in
-    # soaks before 2026-11-27)
-    standbys: List[str] = field(default_factory=list)
+    # "<instance name> <CPU group>" of each warm standby among `processes`; None: not recorded
+    # (soaks before 2026-11-27)
+    standbys: Optional[List[str]] = None
 
 
 @dataclass
@@ -325,13 +325,14 @@ def process_leak(census: Sequence[CensusSample], rec: TestbedRecord,
     same = [s for s in whole if s.instances == last.instances]
     first = same[0]
     leaks = []
-    running = (last.processes - len(last.standbys), first.processes - len(first.standbys))
+    standbys = last.standbys or []
+    running = (last.processes - len(standbys), first.processes - len(first.standbys or []))
     if running[0] > running[1]:
-        leaks.append(f"{running[0]} processes of the ROS system besides warm standbys at "
-                     f"t={last.t:.1f} s against {running[1]} at t={first.t:.1f} s, every node "
-                     "placed alike")
-    doubled = sorted({x for x in last.standbys if last.standbys.count(x) > 1})
+        apart = "" if last.standbys is None else " besides warm standbys"
+        leaks.append(f"{running[0]} processes of the ROS system{apart} at t={last.t:.1f} s "
+                     f"against {running[1]} at t={first.t:.1f} s, every node placed alike")
+    doubled = sorted({x for x in standbys if standbys.count(x) > 1})
     if doubled:
-        leaks.append(f"{len(last.standbys)} warm standbys at t={last.t:.1f} s, two or more of "
+        leaks.append(f"{len(standbys)} warm standbys at t={last.t:.1f} s, two or more of "
                      + ", ".join(doubled))
     return leaks

@@ -38,8 +38,8 @@ try:
     from anyscale_testbed.quota_calibration import CalibrationError
     from anyscale_testbed.quota_for_the_day import (CALIBRATION_FILE, EVERY_NODE_HOME_LINK,
                                                     QuotaForTheDay, calibration_markdown,
-                                                    host_cpu_ms_measured, parse_robot_cpu,
-                                                    read_calibration)
+                                                    host_cpu_ms_measured, normalise_cpu_argv,
+                                                    parse_robot_cpu, read_calibration)
 except ImportError as e:
     sys.exit(f"{os.path.basename(__file__)}: {e}: source this workspace first "
              "(source devel/setup.bash; scripts/setup.sh installs and builds it)")
@@ -106,8 +106,7 @@ def run_argv(condition: str, quota: float, reference_ms: float, duration: float,
     return ([sys.executable, RUN_TESTBED, "--world", "office_floor", "--duration",
              f"{duration:g}", "--robot-cpu", f"{quota:g}", "--out", out_dir]
             + EVERY_NODE_HOME_LINK
-            + (["--normalise-cpu", "--reference-cpu-ms", f"{reference_ms:.3f}"]
-               if condition == "normalised" else []))
+            + normalise_cpu_argv(condition == "normalised", reference_ms))
 
 
 def home_run(round_: int, condition: str, rec) -> HomeRun:

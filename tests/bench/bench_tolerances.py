@@ -37,7 +37,7 @@ try:
     from anyscale_testbed.move_gap_report import move_gap_lines
     from anyscale_testbed.quota_calibration import CalibrationError
     from anyscale_testbed.quota_for_the_day import (QuotaForTheDay, calibration_markdown,
-                                                    parse_robot_cpu)
+                                                    normalise_cpu_argv, parse_robot_cpu)
     from anyscale_testbed.tolerance_report import (format_markdown, format_table, row_cells, run_row,
                                                    topics_of, write_csv)
 except ImportError as e:
@@ -117,9 +117,7 @@ def run_argv(args, start_goal: int, seed: int, out_dir: str, robot_cpu=None, fou
     return ([sys.executable, RUN_TESTBED, "--world", args.world, "--link", "coverage",
              "--seed", str(seed), "--allocator", args.allocator, "--start-goal", str(start_goal),
              "--duration", str(args.duration), "--out", out_dir]
-            + (["--normalise-cpu"] if args.normalise_cpu else [])
-            + (["--reference-cpu-ms", f"{found_at_ms:.3f}"]
-               if args.normalise_cpu and found_at_ms is not None else [])
+            + normalise_cpu_argv(args.normalise_cpu, found_at_ms)
             + (["--robot-cpu", f"{robot_cpu:g}"] if robot_cpu is not None else [])
             + (["--record-inputs", args.record_inputs] if args.record_inputs else []))
 

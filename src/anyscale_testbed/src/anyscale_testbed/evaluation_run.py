@@ -52,7 +52,7 @@ from .link_shaper import coverage_grid, coverage_model_from_grid
 from .premise_figures import premise_off_note
 from .quota_calibration import CalibrationError
 from .quota_for_the_day import (EVERY_NODE_HOME_LINK, QuotaForTheDay, calibration_markdown,
-                                parse_robot_cpu)
+                                normalise_cpu_argv, parse_robot_cpu)
 from .testbed_record import TestbedRecord
 
 ALLOCATORS = ("paper", "paper_local", "optimal")
@@ -280,11 +280,9 @@ def run_argv(run: PlannedRun, args, run_testbed: str, run_dir: str,
     the robot's quota (None: the calibration file's); found_at_ms: the host speed it was found
     at (with --normalise-cpu, the reference the quotas follow from)."""
     quota = ["--robot-cpu", f"{robot_cpu:g}"] if robot_cpu is not None else []
-    normalise = ["--normalise-cpu"] if args.normalise_cpu else []
-    if args.normalise_cpu and found_at_ms is not None:
-        normalise += ["--reference-cpu-ms", f"{found_at_ms:.3f}"]
     return ([sys.executable, run_testbed, "--world", args.world, "--duration", str(args.duration),
-             "--out", run_dir] + quota + normalise + run.argv)
+             "--out", run_dir] + quota + normalise_cpu_argv(args.normalise_cpu, found_at_ms)
+            + run.argv)
 
 
 def run_one(run: PlannedRun, args, run_testbed: str, run_dir: str,

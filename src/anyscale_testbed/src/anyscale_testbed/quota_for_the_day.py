@@ -65,6 +65,15 @@ def host_speed_found_at(quota: float, points: Sequence[QuotaPoint],
     return statistics.median(known) if known else None
 
 
+def normalise_cpu_argv(normalise_cpu: bool, found_at_ms: Optional[float]) -> List[str]:
+    """run_testbed.py's options for a run whose quotas follow the host's speed (none without
+    normalise_cpu): relative to found_at_ms, the speed its quota was found at, if known."""
+    if not normalise_cpu:
+        return []
+    return ["--normalise-cpu"] + ([] if found_at_ms is None
+                                  else ["--reference-cpu-ms", f"{found_at_ms:.3f}"])
+
+
 def newest_calibrated_quota(out: str) -> Optional[float]:
     """The quota of the calibration written last in a directory of `out` (None: none yet): a
     resumed evaluation's next calibration starts from it, not from the calibration file's

@@ -1,9 +1,12 @@
-"""The decision node's actions where a tolerance bench run found them wrong: a registration
-check that took a paused instance for a ghost, and a handover that fell back to an instance out
-of reach. AgentActions (agent_actions_ros.py) on a stand-in for the decision node, with the
+"""The decision node's actions where test bed runs found them wrong: a registration check
+that took a paused instance for a ghost, a handover that fell back to an instance out of reach,
+a stray to stop only while its agent still shows it running, and a watch list a restarted
+agent lost. AgentActions (agent_actions_ros.py) on a stand-in for the decision node, with the
 master calls and the agents replaced."""
 import threading
 import types
+
+from anyscale_msgs.msg import NodeProcess, ScaleStatus
 
 from anyscale_core import agent_actions_ros
 from anyscale_core.agent_actions_ros import AgentActions
@@ -70,3 +73,44 @@ def test_a_handover_back_whose_old_instance_is_out_of_reach_keeps_the_new_one(te
     reachable._overlap("ar_recognition", stop, watch, pid=42)
     assert reachable.stopped == [("ar_recognition", "robot")]
     assert [args[:3] for args in reachable.failed] == [("ar_recognition", "laptop", "robot")]
+
+
+def status(*processes):
+    """A ScaleStatus of the robot's agent showing (name, state) processes."""
+    return ScaleStatus(scale="robot", nodes=[NodeProcess(name=n, state=s) for n, s in processes])
+
+
+def test_a_stray_is_stopped_only_while_its_agent_still_shows_it_running(testbed, monkeypatch):
+    monkeypatch.setattr(agent_actions_ros.rospy, "logwarn", lambda *args: None)
+    node = Node(testbed)
+    stray = StopNode("ar_recognition", "robot", pause=True, stray=True)
+    node.statuses["robot"] = status(("/ar_recognition", NodeProcess.PAUSED))
+    node._stop_stray("ar_recognition", stray)          # paused meanwhile: nothing to do
+    assert node.stopped == []
+    node.statuses["robot"] = status(("/ar_recognition", NodeProcess.RUNNING))
+    node._stop_stray("ar_recognition", stray)
+    assert node.stopped == [("ar_recognition", "robot")]
+
+
+def test_a_stray_where_the_node_is_mapped_again_is_left_running(testbed, monkeypatch):
+    node = Node(testbed)
+    node.statuses["robot"] = status(("/amcl", NodeProcess.RUNNING))
+    node._stop_stray("amcl", StopNode("amcl", "robot", pause=True, stray=True))
+    assert node.stopped == []
+
+
+def report(at, topics, running):
+    return types.SimpleNamespace(received_at=at, topic_rates={t: 5.0 for t in topics},
+                                 running={n: 1.0 for n in running})
+
+
+def test_a_watch_list_is_lost_when_a_later_report_lacks_a_topic_its_subscriber_runs_for():
+    watched = [("/amcl_pose", "/ekf"), ("/scan", "/amcl")]
+    lost = AgentActions._watch_list_lost
+    sent = 10.0
+    assert lost(report(11.5, ["/scan"], ["ekf", "amcl"]), watched, sent)
+    # too soon after the list was sent for the agent to count the topic
+    assert not lost(report(10.5, ["/scan"], ["ekf", "amcl"]), watched, sent)
+    # the subscriber does not run there (yet): the agent would not count it
+    assert not lost(report(11.5, ["/scan"], ["amcl"]), watched, sent)
+    assert not lost(report(11.5, ["/scan", "/amcl_pose"], ["ekf", "amcl"]), watched, sent)

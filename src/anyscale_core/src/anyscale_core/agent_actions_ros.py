@@ -19,9 +19,29 @@ from .handover_ros import PUBLISHED, TIMED_OUT, OutputWatch, wait_for_output
 REGISTER_TIMEOUT_S = 30.0  # a started node not registered by then is reported as failed
 GHOST_PING_TIMEOUT_S = 0.5  # a registered instance that does not answer this fast is gone
 WATCH_RESEND_S = 10.0     # re-send watch lists now and then: an agent may have restarted
+WATCH_CHECK_S = 1.0       # a watched topic missing from a report this long after the list was
+                          # sent: the list is sent again
 
 
 class AgentActions:
+    def _submit_node_job(self, node, job):
+        """`job` on the node's worker, counted in node_jobs until it ended: the engine leaves
+        alone the strays of a node whose actions are still to come (DecisionEngine._strays)."""
+        def run():
+            try:
+                job()
+            finally:
+                with self.lock:
+                    left = self.node_jobs.get(node, 1) - 1
+                    if left > 0:
+                        self.node_jobs[node] = left
+                    else:
+                        self.node_jobs.pop(node, None)
+
+        with self.lock:
+            self.node_jobs[node] = self.node_jobs.get(node, 0) + 1
+        self.node_workers[node].submit(run)
+
     def _execute_move(self, node, actions, event, stamp, decided):
         """One decision's actions for one node, in order. A planned move starts the new instance
         first and hands the old one's stop to a thread that waits for the new one's output
@@ -51,6 +71,8 @@ class AgentActions:
             elif action is handover:
                 threading.Thread(target=self._hand_over, args=(node, action, watch, pid),
                                  daemon=True).start()
+            elif action.stray:
+                self._stop_stray(node, action)
             elif action.best_effort:
                 # Not waited for: it ends before the lease does, or not at all.
                 threading.Thread(target=self._stop, args=(node, action.scale, True),
@@ -100,8 +122,8 @@ class AgentActions:
             # On the node's worker, after any start a later decision queued there, and only if
             # the node is not meant to run on `source` by then: a link loss that brought it
             # back while the new instance was publishing keeps the old instance.
-            self.node_workers[node].submit(lambda: assigned() != source and
-                                           self._stop(node, source, pause=stop.pause))
+            self._submit_node_job(node, lambda: assigned() != source and
+                                  self._stop(node, source, pause=stop.pause))
             return
         if not self.link_up.get(source, True):
             # The old instance is out of reach: going back to it would leave the node running
@@ -122,7 +144,28 @@ class AgentActions:
                                 math.nan, False)
             self._publish_mapping()
 
+    def _stop_stray(self, node, stop: StopNode):
+        """Stops (or pauses) an instance the engine found where the mapping does not place its
+        node, if the agent's latest status still shows it running and the node is still not
+        meant to run there: a stop queued before this one may have ended it meanwhile."""
+        with self.lock:
+            elsewhere = self.engine.mapping()[node] != stop.scale
+        if not (elsewhere and self._agent_reports_running(stop.scale, node,
+                                                          states=conv.ALIVE_STATES)):
+            return
+        rospy.logwarn("anyscale decision: %s runs on %s, where the mapping does not place it "
+                      "(a stop that did not get through, e.g. its agent was restarted); %s it",
+                      node, stop.scale, "pausing" if stop.pause else "stopping")
+        self._stop(node, stop.scale, pause=stop.pause)
+
     def _stop(self, node, scale, best_effort=False, pause=False):
+        try:
+            self._stop_once(node, scale, best_effort, pause)
+        finally:
+            with self.lock:
+                self.engine.stop_answered(node, time.monotonic())
+
+    def _stop_once(self, node, scale, best_effort, pause):
         if not best_effort and not self.link_up.get(scale, True):
             return          # out of reach: its lease ends it there
         instance = self.model.instance_name(node, scale)
@@ -149,7 +192,7 @@ class AgentActions:
                 self.pausing.pop(instance, None)
             # Not paused (e.g. it was still starting): left running, it would publish beside
             # the instance that replaced it.
-            self._stop(node, scale, best_effort)
+            self._stop_once(node, scale, best_effort, False)
 
     def _start(self, action: StartNode, event, stamp, decided, handover=None) -> int:
         """Starts the node; its pid, or 0 if the start failed (then handled here)."""
@@ -204,12 +247,14 @@ class AgentActions:
         self._publish_event(event.kind, node, event.from_scale, scale, reason, stamp,
                             time.monotonic() - decided if registered else math.nan, registered)
 
-    def _agent_reports_running(self, scale, node, pid=None):
+    def _agent_reports_running(self, scale, node, pid=None, states=None):
+        """Whether the agent's latest status shows the node's instance (with `pid`, if given)
+        in one of `states` (default: RUNNING)."""
         with self.lock:
             status = self.statuses.get(scale)
         return status is not None and any(
-            p.name == "/" + node and pid in (None, p.pid) and p.state == p.RUNNING
-            for p in status.nodes)
+            p.name == "/" + node and pid in (None, p.pid) and
+            p.state in (states or (p.RUNNING,)) for p in status.nodes)
 
     def _renew(self, action: RenewLeases):
         # A node whose start is still queued gets its lease from the start itself.
@@ -228,16 +273,29 @@ class AgentActions:
     def _send_watch_lists(self, force=False):
         with self.lock:
             lists = conv.watched_topics(self.model, self.engine.mapping())
-            seen = set(self.reports)
+            reports = dict(self.reports)
         now = time.monotonic()
         for scale, watched in lists.items():
             last = self.watch_sent.get(scale)
-            if scale not in seen or (not force and last and last[0] == watched and
-                                     now - last[1] < WATCH_RESEND_S):
+            if scale not in reports or (not force and last and last[0] == watched and
+                                        now - last[1] < WATCH_RESEND_S and
+                                        not self._watch_list_lost(reports[scale], watched,
+                                                                  last[1])):
                 continue
             self.watch_sent[scale] = (watched, now)
             self.scale_workers[scale].submit(lambda s=scale, w=watched: self._set_watched(s, w),
                                              key="watch")
+
+    @staticmethod
+    def _watch_list_lost(report, watched, sent_at):
+        """Whether a report received WATCH_CHECK_S after the list was sent lacks a watched
+        topic whose subscriber it shows running: the agent that got the list is gone (a
+        restarted agent starts with none). Without it the topic has no rate there, and the
+        judge brought the relay home from a clean link 3.5 s after a kill of the robot's
+        agent, before the periodic resend."""
+        return report.received_at > sent_at + WATCH_CHECK_S and any(
+            topic not in report.topic_rates and conv.model_node_name(subscriber) in report.running
+            for topic, subscriber in watched)
 
     def _set_watched(self, scale, watched):
         try:

@@ -40,6 +40,7 @@ class DecisionEngine:
         self.link = LinkCapacity(BandwidthHold(params.bandwidth_hold_s, params.bandwidth_margin),
                                  params.bandwidth_stay_margin, params.weak_link_mbps)
         self.start_acked_at: Dict[int, float] = {}   # node -> when its latest start was answered
+        self.stop_answered_at: Dict[int, float] = {}  # node -> when its latest stop ended
         # node -> the remote scale it ran on under the decision node before a restart (restored)
         self.out_before_restart: Dict[int, str] = {}
 
@@ -131,10 +132,13 @@ class DecisionEngine:
 
     # --- every period -------------------------------------------------------------------------
     def tick(self, reports: Mapping[str, ScaleReport], now: float,
-             moves_allowed: bool = True, starting: AbstractSet[str] = frozenset()) -> TickResult:
+             moves_allowed: bool = True, starting: AbstractSet[str] = frozenset(),
+             acting: AbstractSet[str] = frozenset()) -> TickResult:
         """One period. With moves_allowed False (the initial configuration is still coming up:
-        its rates mean nothing yet) only the leases are renewed and nodes that ended started
-        again. `starting`: nodes whose start has not been answered yet."""
+        its rates mean nothing yet) only the leases are renewed, nodes that ended started
+        again and stray instances stopped. `starting`: nodes whose start has not been answered
+        yet; `acting`: nodes with an action of the wrapper queued or under way (their strays
+        may be what that action ends)."""
         state = self.dynamic_state(reports, now)
         up = state.up_vector(self.ch)
         remote_up = any(up[k] for k in range(self.ch.num_scales) if k != self.ch.master)
@@ -142,9 +146,10 @@ class DecisionEngine:
         streams = required_bandwidth(self.ch, self.assign)
         self.link.observe(now, measured, remote_up, streams)
         state = replace(state, admit_bandwidth_mbps=self.link.admissible(now))
+        strays = self._strays(reports, up, now, starting | acting)
         if not moves_allowed:
             restarts, restart_events = self._restarts(reports, up, now, starting)
-            return TickResult(restarts + self._renewals(up), restart_events, state, [])
+            return TickResult(restarts + strays + self._renewals(up), restart_events, state, [])
         violating = self.judge.violating(self.assign, reports, now)
         ctx = AllocationContext(now, self.params.hysteresis_s, dict(self.migrated_back_at),
                                 violating, self._held_after_loss(now))
@@ -175,9 +180,10 @@ class DecisionEngine:
             self.link.mapping_changed(now, streams)
             self.assign = decision.assign.copy()
             self.objective.change(now, perf(self.ch, self.assign))
-        restarts, restart_events = self._restarts(reports, up, now, starting,
-                                                  moved={m.node for m in decision.moves})
-        actions += restarts + self._renewals(up)
+        moved = {m.node for m in decision.moves}
+        restarts, restart_events = self._restarts(reports, up, now, starting, moved=moved)
+        actions += restarts + [a for a in strays if self.ch.node_index(a.node) not in moved]
+        actions += self._renewals(up)
         events += restart_events
         return TickResult(actions, events, state,
                           [self.ch.node_names[i] for i in sorted(violating)])
@@ -212,6 +218,11 @@ class DecisionEngine:
         """The agent answered a start of `node`: reports received before now may still show the
         instance it replaces as ended."""
         self.start_acked_at[self.ch.node_index(node)] = now
+
+    def stop_answered(self, node: str, now: float):
+        """A stop or pause of `node` ended, answered or not: reports received before now may
+        still show the instance it ended as running."""
+        self.stop_answered_at[self.ch.node_index(node)] = now
 
     def move_failed(self, node: str, source: str, target: str, now: float) -> Optional[Event]:
         """A make-before-break move whose new instance on `target` never published: the node
@@ -344,6 +355,33 @@ class DecisionEngine:
             events.append(Event("restart", name, scale, scale,
                                 f"ended on {scale}: {report.ended[name]}"))
         return actions, events
+
+    def _strays(self, reports, up, now, busy: AbstractSet[str]) -> List[StopNode]:
+        """Instances that run where the mapping does not place their node, with nothing under
+        way for the node that would explain them, to stop (at home, to pause, for a node
+        declared pause_at_home). They are a stop that failed: in a fault soak the robot's
+        agent was killed while AMCL moved out, the pause of AMCL's robot instance got
+        "connection refused", the agent's successor adopted the instance as running, and it
+        published beside the laptop's for 17.8 s; at home no lease would ever have ended it.
+        A remote instance that the link's return brings back into reach before its lease runs
+        out is one too, stopped here at once instead of at the lease's end. Only fresh reports
+        received after the node's latest start and stop were answered count: an earlier one
+        may still show an instance that the stop has ended since."""
+        stops = []
+        for i, name in enumerate(self.ch.node_names):
+            if name in busy:
+                continue
+            settled = max(self.start_acked_at.get(i, -math.inf),
+                          self.stop_answered_at.get(i, -math.inf))
+            for scale, report in sorted(reports.items()):
+                k = self.ch.scale_index(scale)
+                if (k == self.assign[i] or not up[k] or name not in report.running
+                        or report.received_at <= settled
+                        or now - report.received_at > self.params.status_timeout_s):
+                    continue
+                pause = k == self.ch.master and self.ch.model.node(name).launch.pause_at_home
+                stops.append(StopNode(name, scale, pause=pause, stray=True))
+        return stops
 
     def _crashed_out_comes_home(self, i: int, scale: str, how: str, now: float) -> Event:
         """A node with a paused instance at home that ended unasked on a remote scale is

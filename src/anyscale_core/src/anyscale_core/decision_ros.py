@@ -82,6 +82,7 @@ class DecisionNode(AgentActions):
         self.scale_workers = {s: Worker(f"anyscale_{s}") for s in self.ch.scale_names}
         self.call_failures = CallFailures()
         self.handing_over = set()             # nodes whose old and new instance both run
+        self.node_jobs: Dict[str, int] = {}   # node -> its jobs queued or running on its worker
         # instance paused at our request -> (its scale, when the pause was acknowledged)
         self.pausing = {}
         self.registrations = Worker("anyscale_registrations")
@@ -154,7 +155,8 @@ class DecisionNode(AgentActions):
                 before = self.engine.mapping()
                 result = self.engine.tick(dict(self.reports), time.monotonic(),
                                           moves_allowed=not coming_up,
-                                          starting={n for n, _ in self.starting})
+                                          starting={n for n, _ in self.starting},
+                                          acting=set(self.handing_over) | set(self.node_jobs))
                 self.violating = result.violating
                 self.state = result.state
                 self.link_up = dict(result.state.link_up)
@@ -284,8 +286,8 @@ class DecisionNode(AgentActions):
                         self.starting.add((action.node, action.scale))
         events = {e.node: e for e in result.events}
         for node, actions in jobs.items():
-            self.node_workers[node].submit(lambda n=node, a=actions, e=events.get(node):
-                                           self._execute_move(n, a, e, now_stamp, decided))
+            self._submit_node_job(node, lambda n=node, a=actions, e=events.get(node):
+                                  self._execute_move(n, a, e, now_stamp, decided))
         for e in result.events:
             if e.kind == "restart":
                 rospy.logwarn("anyscale decision: %s ended (%s); starting it again", e.node,

@@ -112,6 +112,9 @@ class StopNode:
     # Pause the instance instead (launch.pause_at_home, the master scale only): the next start
     # there resumes it.
     pause: bool = False
+    # An instance found running where the mapping does not place its node (DecisionEngine's
+    # _strays): stopped only if the agent still reports it so when the stop is made.
+    stray: bool = False
 
 
 @dataclass(frozen=True)

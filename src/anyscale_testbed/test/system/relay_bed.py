@@ -5,6 +5,8 @@ import os
 import subprocess
 import sys
 
+import yaml
+
 from anyscale_testbed.two_scale_testbed import namespace_exec
 
 PROBE = """
@@ -21,19 +23,45 @@ rospy.spin()
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
-def launch_relay_bed(bed, session, run_dir, model, receipts_path, hysteresis_s):
+def launch_relay_bed(bed, session, run_dir, model, receipts_path, hysteresis_s,
+                     agent_respawn=False, laptop_args=()):
     """The robot (agent, decision node, a clean 27 Mbit/s link, monitor), the laptop's agent,
-    and the probe writing every /chatter_relay receipt to receipts_path."""
+    and the probe writing every /chatter_relay receipt to receipts_path. agent_respawn: the
+    robot's agent is started again when it ends, and adopts the nodes it left; laptop_args:
+    more args of the laptop's agent.launch."""
     session.roslaunch("robot", "robot", [
         os.path.join(HERE, "relay_robot.launch"), f"model:={model}", "schedule:=[[0, 27]]",
         f"record_path:={os.path.join(run_dir, 'record.json')}", "duration_s:=120",
-        f"hysteresis_s:={hysteresis_s}", f"uplink_interface:={bed.uplink_interface('robot')}"],
+        f"hysteresis_s:={hysteresis_s}", f"uplink_interface:={bed.uplink_interface('robot')}",
+        f"agent_respawn:={str(agent_respawn).lower()}"],
         wait_for_master=False)
     session.roslaunch("laptop", "laptop", [
         "anyscale_agent_cpp", "agent.launch", "scale:=laptop", "master_scale:=robot",
-        f"model:={model}", "sample_rate_hz:=5.0", "sigint_timeout_s:=2.0"])
+        f"model:={model}", "sample_rate_hz:=5.0", "sigint_timeout_s:=2.0", *laptop_args])
     bed.start("robot", [sys.executable, "-c", PROBE, receipts_path], session.env("robot"),
               os.path.join(run_dir, "logs", "probe.log"), cpu_quota=False)
+
+
+def paused_at_home_model(run_dir):
+    """relay_model.yaml with the relay declared launch.pause_at_home, written into run_dir."""
+    with open(model_path()) as f:
+        model = yaml.safe_load(f)
+    for node in model["nodes"]:
+        if node["name"] == "relay":
+            node["launch"]["pause_at_home"] = True
+    path = os.path.join(run_dir, "relay_paused_at_home.yaml")
+    with open(path, "w") as f:
+        yaml.safe_dump(model, f)
+    return path
+
+
+def process_state(pid):
+    """The state letter of /proc/PID/stat (T: stopped, e.g. paused), or "-" if it is gone."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return "-"
 
 
 def model_path():
@@ -43,6 +71,12 @@ def model_path():
 
 def relay_processes():
     """pid -> the node name it was started under, for every live relay on this machine."""
+    return processes_named("relay")
+
+
+def processes_named(node):
+    """pid -> the node name it was started under (`node`, or node__SCALE), for every live
+    process on this machine started with such a __name."""
     found = {}
     for pid in filter(str.isdigit, os.listdir("/proc")):
         try:
@@ -54,7 +88,7 @@ def relay_processes():
         except OSError:
             continue
         for a in args:
-            if a == "__name:=relay" or a.startswith("__name:=relay__"):
+            if a == f"__name:={node}" or a.startswith(f"__name:={node}__"):
                 found[int(pid)] = a.split(":=", 1)[1]
     return found
 

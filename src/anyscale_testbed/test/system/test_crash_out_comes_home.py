@@ -10,37 +10,17 @@ import signal
 import time
 
 import pytest
-import yaml
 
 from anyscale_core.polling import wait_for
 
 from anyscale_testbed.testbed_session import NamespaceBed, TestbedSession, layout_with_cpu
 
-from relay_bed import launch_relay_bed, model_path, receipts, relay_in
+from relay_bed import (launch_relay_bed, paused_at_home_model, process_state, receipts,
+                       relay_in)
 
 RELAY_TOLERANCE_S = 2.0        # relay_model.yaml
 HYSTERESIS_S = 30.0            # T: the relay stays home this long after it came back
 AFTER_S = 10.0                 # how long the output is watched after the crash
-
-
-def state(pid):
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0]
-    except OSError:
-        return "-"
-
-
-def paused_at_home_model(run_dir):
-    with open(model_path()) as f:
-        model = yaml.safe_load(f)
-    for node in model["nodes"]:
-        if node["name"] == "relay":
-            node["launch"]["pause_at_home"] = True
-    path = os.path.join(run_dir, "relay_paused_at_home.yaml")
-    with open(path, "w") as f:
-        yaml.safe_dump(model, f)
-    return path
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +33,7 @@ def crash(tmp_path_factory):
         launch_relay_bed(bed, session, run_dir, model, got, HYSTERESIS_S)
         laptop, robot = bed.netns_link("laptop"), bed.netns_link("robot")
         out = wait_for(lambda: relay_in(laptop) and relay_in(robot)
-                       and state(relay_in(robot)[0]) == "T", 60.0, 0.1)
+                       and process_state(relay_in(robot)[0]) == "T", 60.0, 0.1)
         assert out, f"the relay never ran on the laptop with its robot instance paused: " \
                     f"laptop {relay_in(laptop)}, robot {relay_in(robot)}"
         paused = relay_in(robot)[0]
@@ -63,7 +43,7 @@ def crash(tmp_path_factory):
         at = time.time()
         time.sleep(AFTER_S)
         result = {"at": at, "paused": paused, "robot": relay_in(robot), "laptop": relay_in(laptop),
-                  "robot_state": state(paused), "receipts": receipts(got)}
+                  "robot_state": process_state(paused), "receipts": receipts(got)}
     return result
 
 

@@ -3,6 +3,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from anyscale_nav_demo.floor_plan import make_loop_floor
 from anyscale_nav_demo.particle_filter import (BeamLikelihood, LikelihoodField, ParticleFilter,
@@ -240,3 +241,37 @@ def test_a_jump_is_what_the_estimate_moved_beyond_odometry():
     # The bench's run 9: 10.4 m in one update while odometry moved 0.1 m.
     assert jump_beyond_odometry((5.81, 22.01, -1.6), (15.35, 26.15, 0.0), 0.1) == \
         pytest.approx(math.hypot(9.54, 4.14) - 0.1)
+
+
+def test_particles_inside_walls_weigh_nothing(floor):
+    rng = np.random.default_rng(3)
+    truth = floor.start
+    occ = np.argwhere(floor.map.occupied)[len(np.argwhere(floor.map.occupied)) // 2]
+    wall = floor.map.cell_center(occ[1], occ[0])
+    scan = scan_at(floor.map, truth, rng)
+    for exclude, expect_zero in ((True, True), (False, False)):
+        pf = ParticleFilter(LikelihoodField(floor.map), rng, exclude_occupied=exclude)
+        pf.particles = np.array([truth, (wall[0], wall[1], truth[2]), (-99.0, -99.0, 0.0)])
+        pf.weights = np.full(3, 1 / 3)
+        pf.update(scan, ANGLES, (0.0, 0.0, 0.0))
+        assert (pf.weights[1] == 0.0 and pf.weights[2] == 0.0) == expect_zero
+        assert pf.weights[0] > 0
+
+
+def test_deep_inside_a_solid_block_a_particle_fits_as_well_as_the_truth_unless_excluded(floor):
+    # The likelihood field is 0 m from an obstacle everywhere inside one: from the middle of
+    # the loop's solid inner block every beam that hits ends on "a wall". That particle weighs
+    # about as much as the true pose, and only the exclusion keeps the estimate out of it.
+    depth = ndimage.distance_transform_edt(floor.map.occupied)
+    row, col = np.unravel_index(np.argmax(depth), depth.shape)
+    inside = (*floor.map.cell_center(col, row), floor.start[2])
+    scan = scan_at(floor.map, floor.start, np.random.default_rng(5))
+    shares = {}
+    for exclude in (False, True):
+        pf = ParticleFilter(LikelihoodField(floor.map), np.random.default_rng(5),
+                            exclude_occupied=exclude)
+        pf.particles, pf.weights = np.array([floor.start, inside]), np.full(2, 0.5)
+        pf.update(scan, ANGLES, (0.0, 0.0, 0.0))
+        shares[exclude] = pf.weights[1]
+    assert shares[False] > 0.4
+    assert shares[True] == 0.0

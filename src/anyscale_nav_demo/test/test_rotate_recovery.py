@@ -64,3 +64,11 @@ def test_a_turn_counts_the_angle_turned_whichever_way_the_yaw_wraps():
     assert r.step(0.1, None, -2.9) == TURNING        # 0.38 rad across ±π
     assert r.step(0.2, None, -2.5) == TURNING        # 0.78
     assert r.step(0.3, None, -2.2) == FREE           # 1.08 >= 1.0
+
+
+def test_a_turn_that_is_not_seen_ends_at_its_timeout():
+    r = RotateRecovery(RecoveryConfig(stuck_after_s=0.0, attempts=1, turn_timeout_s=5.0))
+    assert r.step(0.0, True, 0.0) == TURNING
+    assert r.step(4.9, None, 0.0) == TURNING         # the yaw never changes
+    assert r.step(5.0, None, 0.0) == FREE
+    assert r.step(5.1, True, 0.0) == GAVE_UP         # it counted as the one attempt

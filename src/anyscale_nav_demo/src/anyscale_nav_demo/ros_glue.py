@@ -60,6 +60,15 @@ def param(name, default=None, kind=float, check=None, what="valid"):
     return value
 
 
+def flag(name, default):
+    """A true/false parameter; anything else (the string "false", 0) is refused by name."""
+    value = raw_param(name, default)
+    if not isinstance(value, bool):
+        raise ParamError("parameter %s must be true or false, got %r"
+                         % (rospy.resolve_name(name), value))
+    return value
+
+
 def positive(name, default, kind=float):
     return param(name, default, kind, lambda v: v > 0, "> 0")
 

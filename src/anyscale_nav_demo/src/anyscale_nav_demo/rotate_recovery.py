@@ -24,6 +24,9 @@ class RecoveryConfig:
     stuck_after_s: float = 3.0    # every trajectory colliding this long starts a turn
     turn_rad: float = 2 * math.pi  # how far one recovery turns
     attempts: int = 3             # turns in a row (no free trajectory between) before giving up
+    # A turn not done by then ends anyway (counted as an attempt): the robot may be held, or its
+    # yaw not seen to change, and a recovery must not turn for ever.
+    turn_timeout_s: float = 30.0
 
 
 class RotateRecovery:
@@ -34,6 +37,7 @@ class RotateRecovery:
         self.turned = 0.0
         self.last_yaw = 0.0
         self.attempt = 0              # recovery turns since the planner last found a free path
+        self.turn_started = 0.0
 
     def step(self, now: float, blocked: Optional[bool], yaw: float) -> str:
         """The state after this control period: TURNING (turn in place, counter-clockwise, at
@@ -43,7 +47,8 @@ class RotateRecovery:
         if self.state == TURNING:
             self.turned += abs(float(wrap_angle(yaw - self.last_yaw)))
             self.last_yaw = yaw
-            if self.turned < self.cfg.turn_rad:
+            if self.turned < self.cfg.turn_rad and \
+                    now - self.turn_started < self.cfg.turn_timeout_s:
                 return TURNING
             self.state, self.blocked_since = FREE, now   # a new window to find a free path
             return FREE
@@ -58,5 +63,5 @@ class RotateRecovery:
             self.state = GAVE_UP
             return GAVE_UP
         self.attempt += 1
-        self.state, self.turned, self.last_yaw = TURNING, 0.0, yaw
+        self.state, self.turned, self.last_yaw, self.turn_started = TURNING, 0.0, yaw, now
         return TURNING

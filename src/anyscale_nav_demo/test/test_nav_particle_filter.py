@@ -1,11 +1,13 @@
 """AMCL core: likelihood field, motion model, convergence from a known pose, KLD, recovery."""
 import math
+import os
 
 import numpy as np
 import pytest
 from scipy import ndimage
 
 from anyscale_nav_demo.floor_plan import make_loop_floor
+from anyscale_nav_demo.occupancy_map import load_map
 from anyscale_nav_demo.particle_filter import (BeamLikelihood, LikelihoodField, ParticleFilter,
                                                jump_beyond_odometry,
                                                kld_sample_count, moved_enough, sample_motion_diff,
@@ -275,3 +277,24 @@ def test_deep_inside_a_solid_block_a_particle_fits_as_well_as_the_truth_unless_e
         shares[exclude] = pf.weights[1]
     assert shares[False] > 0.4
     assert shares[True] == 0.0
+
+
+def test_the_update_that_lost_the_robot_in_a_tolerance_bench_run():
+    # data/lost_robot_update.npz: the inputs of the AMCL update (particles before it, odometry,
+    # scan) saved by amcl's jump record in tolerance bench run tol_s33/run02 (office floor,
+    # t = 157 s), and the true position from the run's record. 55 % of the cloud had spread
+    # into walls; the estimate jumped 1.25 m into them and the robot stood still for 1,000 s.
+    here = os.path.dirname(os.path.abspath(__file__))
+    d = np.load(os.path.join(here, "data", "lost_robot_update.npz"))
+    field = LikelihoodField(load_map(os.path.join(here, "..", "maps", "office_floor.yaml")))
+    errors = {}
+    for exclude in (False, True):
+        pf = ParticleFilter(field, np.random.default_rng(0), exclude_occupied=exclude)
+        pf.particles = d["particles_before"].astype(float)
+        pf.weights = np.full(len(pf.particles), 1.0 / len(pf.particles))
+        pf.predict(tuple(d["odom_before"]), tuple(d["odom"]))
+        pf.update(d["ranges"].astype(float), d["angles"].astype(float), tuple(d["laser_offset"]))
+        (x, y, _), _ = pf.estimate()
+        errors[exclude] = math.dist((x, y), d["truth"])
+    assert errors[False] > 1.0
+    assert errors[True] < 0.3

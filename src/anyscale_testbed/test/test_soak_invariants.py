@@ -292,6 +292,18 @@ def test_growth_of_memory_and_of_descriptors_is_found_and_steady_use_is_not():
     assert "GREW" in format_table([], [], list(found.values()))
 
 
+def test_connections_that_follow_the_graph_are_no_growth_and_a_leaked_socket_is():
+    # The decision node's descriptors in a soak: 22-33 as instances came and went, all of the
+    # swing established connections. One whose count of other descriptors climbs is judged.
+    def swinging(pid, held):
+        return [ResourceSample(i * 5.0, "decision", pid, 60.0, held(i) + c, c)
+                for i, c in enumerate([3, 3, 4, 9, 10, 11, 9, 12, 11, 10, 11, 12] * 5)]
+    found = {g.pid: g for g in growth(swinging(30, lambda i: 18) +
+                                      swinging(31, lambda i: 18 + i // 6))}
+    assert found[30].grew == []
+    assert found[31].grew and found[31].grew[0].startswith("file descriptors")
+
+
 def test_a_process_respawned_late_is_judged_over_its_own_life_and_a_brief_one_is_named():
     # An agent killed and started again 55 s before the soak ended: 35 s after its warm-up,
     # at 2 Hz, leaking 0.5 MB/s and a descriptor every 3 s.

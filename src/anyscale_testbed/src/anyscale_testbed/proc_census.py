@@ -58,15 +58,48 @@ def master_processes(master_uri: str) -> List[int]:
     return found
 
 
-def memory_and_fds(pid: int) -> Optional[Tuple[float, int]]:
-    """(resident memory in MB, open file descriptors) of a process; None if it is gone."""
+TCP_ESTABLISHED = "01"     # the st column of /proc/net/tcp
+
+
+def memory_and_fds(pid: int) -> Optional[Tuple[float, int, int]]:
+    """(resident memory in MB, open file descriptors, how many of those are established TCP
+    connections) of a process; None if it is gone. A ROS node's connections come and go with
+    the graph (a publisher that starts adds one to each subscriber); a socket whose peer has
+    gone and that the process never closed is no longer ESTABLISHED (CLOSE_WAIT)."""
     try:
         with open(f"/proc/{pid}/statm") as f:
             resident_pages = int(f.read().split()[1])
-        fds = len(os.listdir(f"/proc/{pid}/fd"))
+        sockets = set()
+        fds = 0
+        for fd in os.listdir(f"/proc/{pid}/fd"):
+            fds += 1
+            try:
+                target = os.readlink(f"/proc/{pid}/fd/{fd}")
+            except OSError:
+                continue                    # closed meanwhile
+            if target.startswith("socket:["):
+                sockets.add(target[8:-1])
+        established = sum(1 for inode in established_inodes(pid) if inode in sockets)
     except (OSError, IndexError, ValueError):
         return None
-    return resident_pages * os.sysconf("SC_PAGE_SIZE") / 1e6, fds
+    return resident_pages * os.sysconf("SC_PAGE_SIZE") / 1e6, fds, established
+
+
+def established_inodes(pid: int) -> List[str]:
+    """Socket inodes of the established TCP connections in the process's network namespace
+    (/proc/PID/net/tcp and tcp6: the namespace's view, not the host's)."""
+    inodes = []
+    for name in ("tcp", "tcp6"):
+        try:
+            with open(f"/proc/{pid}/net/{name}") as f:
+                next(f)                     # the header
+                for line in f:
+                    cols = line.split()
+                    if len(cols) > 9 and cols[3] == TCP_ESTABLISHED:
+                        inodes.append(cols[9])
+        except (OSError, StopIteration):
+            continue
+    return inodes
 
 
 def cpu_usage(pid: int) -> Optional[Tuple[str, str, float]]:

@@ -58,7 +58,7 @@ class Sampler(threading.Thread):
             for pid in role_pids:
                 used = memory_and_fds(pid)
                 if used is not None:
-                    resources.append(ResourceSample(now, role, pid, used[0], used[1]))
+                    resources.append(ResourceSample(now, role, pid, *used))
         supervisors["master"] = len(master_processes(self.master_uri))
         system = processes_with_master(self.master_uri)
         cpu, standbys = [], []

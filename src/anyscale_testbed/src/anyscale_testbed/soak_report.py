@@ -93,7 +93,7 @@ def detail_lines(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
     for g in growths:
         state = "GREW " + "; ".join(g.grew) if g.grew else "steady"
         lines.append(f"{g.role} pid {g.pid} over {g.span_s:.0f} s: memory {g.rss_first_mb:.1f}"
-                     f" -> {g.rss_last_mb:.1f} MB, fds {g.fds_first:g} -> {g.fds_last:g}: {state}")
+                     f" -> {g.rss_last_mb:.1f} MB, fds besides connections {g.fds_first:g} -> {g.fds_last:g}: {state}")
     return lines + [f"NOT CHECKED {x}" for x in unchecked]
 
 

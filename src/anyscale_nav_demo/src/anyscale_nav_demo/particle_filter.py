@@ -208,9 +208,9 @@ class ParticleFilter:
         p = self.sensor.weights(self.particles, ranges, angles, laser_offset, self.range_max)
         if self.exclude_occupied:
             # Not amcl's: a robot's centre is never inside a wall, but a particle there can fit
-            # a scan as well as one in the corridor beside it (the likelihood field only asks
-            # how far each beam's end is from a wall). A cloud that spread into the inner block
-            # of the small loop took the estimate 2.2 m into it in one update.
+            # a scan as well as one in the corridor beside it (the likelihood field is 0 m from
+            # an obstacle everywhere inside one). In a tolerance bench run 55 % of the cloud
+            # lay in walls when the estimate jumped 1.25 m into them and the robot got lost.
             p = np.where(self.field.map.is_occupied_at(self.particles[:, 0],
                                                        self.particles[:, 1]), 0.0, p)
         w = self.weights * p

@@ -8,7 +8,7 @@ for 1,000 s this way after a 1.25 m jump of the estimate. A full turn of a round
 only the disc it stands on, so it is safe wherever the robot truly is.
 
 No ROS: the navigation node feeds it, once per control period, whether the local planner found
-a free trajectory and the current yaw, and it says whether to turn (and which way) instead.
+a free trajectory and the current yaw, and it says whether to turn in place instead.
 """
 import math
 from dataclasses import dataclass

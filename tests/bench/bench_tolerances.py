@@ -83,6 +83,9 @@ def parse_args(argv):
                    help="run_testbed.py --record-inputs: the inputs whose gaps each violation's "
                         f"cause names (default: {DEFAULT_INPUTS}, the small topics that feed AMCL; "
                         "'' for none: each is one more subscriber on the robot's quota)")
+    p.add_argument("--late-boost-fraction", type=float, default=None, metavar="F",
+                   help="run_testbed.py --late-boost-fraction for every run and calibration "
+                        "(default: robot.launch's; 0: no late boost, to compare)")
     p.add_argument("--out", default=None,
                    help="results directory (default: results/bench_tolerances/<date-time>)")
     args = p.parse_args(argv)
@@ -119,7 +122,13 @@ def run_argv(args, start_goal: int, seed: int, out_dir: str, robot_cpu=None, fou
              "--duration", str(args.duration), "--out", out_dir]
             + normalise_cpu_argv(args.normalise_cpu, found_at_ms)
             + (["--robot-cpu", f"{robot_cpu:g}"] if robot_cpu is not None else [])
-            + (["--record-inputs", args.record_inputs] if args.record_inputs else []))
+            + (["--record-inputs", args.record_inputs] if args.record_inputs else [])
+            + late_boost_argv(args))
+
+
+def late_boost_argv(args):
+    return ([] if args.late_boost_fraction is None
+            else ["--late-boost-fraction", f"{args.late_boost_fraction:g}"])
 
 
 def run_once(args, start_goal: int, seed: int, out_dir: str, robot_cpu=None,
@@ -144,7 +153,7 @@ def main(argv=None) -> int:
     # AMCL at 1.86 Hz in a run calibrated for 2.
     quotas = QuotaForTheDay(RUN_TESTBED, args.world, out, args.robot_cpu,
                             extra_argv=(["--record-inputs", args.record_inputs]
-                                        if args.record_inputs else []))
+                                        if args.record_inputs else []) + late_boost_argv(args))
     try:
         for k in range(args.runs):
             start_goal = (args.first_start + k) % goals

@@ -21,6 +21,8 @@ void AgentNode::diagnoseNodes(diagnostic_updater::DiagnosticStatusWrapper& stat)
   }
   stat.summaryf(failed ? diagnostic_msgs::DiagnosticStatus::WARN : diagnostic_msgs::DiagnosticStatus::OK,
                 "%d running, %d starting, %d failed", running, starting, failed);
+  std::lock_guard<std::mutex> boost_lock(boost_mutex_);
+  stat.add("late output boosts", boosts_.lateBoosts());
 }
 
 void AgentNode::diagnoseScale(diagnostic_updater::DiagnosticStatusWrapper& stat)

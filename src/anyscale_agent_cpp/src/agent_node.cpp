@@ -95,8 +95,6 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   std::filesystem::create_directories(log_dir_, ec);
   if (ec)
     throw std::runtime_error("cannot create ~log_dir '" + log_dir_ + "': " + ec.message());
-  // Before any start: the nodes a killed predecessor left running are this agent's again.
-  adoptNodes(param<std::string>(pnh_, "state_file", log_dir_ + "/running_nodes.yaml"));
   clear_params_ = param(pnh_, "clear_params", true);
   sample_period_s_ = 1.0 / positive(pnh_, "sample_rate_hz", 2.0);
   warm_start_ = param(pnh_, "warm_start", true);
@@ -105,7 +103,13 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   if (start_boost_nice < -20 || start_boost_nice > 0)
     throw std::runtime_error("parameter ~start_boost_nice must be a nice value from -20 to 0 (0: no boost), got " +
                              std::to_string(start_boost_nice));
-  boosts_ = StartBoosts(start_boost_nice, positive(pnh_, "start_boost_s", 3.0));
+  const double late_boost_fraction = param(pnh_, "late_boost_fraction", 0.5);
+  if (!(late_boost_fraction >= 0.0 && late_boost_fraction <= 1.0))
+    throw std::runtime_error("parameter ~late_boost_fraction must be a fraction of a node's output tolerance from 0 "
+                             "to 1 (0: no late boost), got " + std::to_string(late_boost_fraction));
+  boosts_ = OutputBoosts(start_boost_nice, positive(pnh_, "start_boost_s", 3.0), late_boost_fraction);
+  // Before any start: the nodes a killed predecessor left running are this agent's again.
+  adoptNodes(param<std::string>(pnh_, "state_file", log_dir_ + "/running_nodes.yaml"));
   raiseControlPriority(param(pnh_, "control_nice", 0));
 
   topics_ = std::make_unique<TopicWatcher>(nh_, positive(pnh_, "rate_window_s", 2.0),
@@ -231,7 +235,7 @@ void AgentNode::onSupervise(const ros::SteadyTimerEvent&)
       if (p.state == ProcState::Exited && !p.stop_requested)
         ended_unasked_.insert(p.name);
   }
-  endBoosts();
+  updateBoosts();
   std::vector<std::string> expired;
   {
     std::lock_guard<std::mutex> lock(leases_mutex_);

@@ -1,5 +1,5 @@
-// Priorities: the agent's own (~control_nice), and each node's declared launch.nice with the start
-// boost (~start_boost_nice until its first output, for ~start_boost_s at most).
+// Priorities: the agent's own (~control_nice), and each node's declared launch.nice with its output
+// boosts (~start_boost_nice until its first output and while its output is late; OutputBoosts).
 #include "anyscale_agent_cpp/agent_node.h"
 
 #include <unistd.h>
@@ -24,9 +24,9 @@ void AgentNode::raiseControlPriority(int control_nice)
              error.c_str(), ": raising a priority needs CAP_SYS_NICE");
 }
 
-void AgentNode::setStartPriority(const std::string& name, int pid, int nice)
+void AgentNode::setStartPriority(const NodeDecl& decl, const std::string& name, int pid)
 {
-  const int start_nice = boosts_.startNice(nice);
+  const int start_nice = boosts_.boostedNice(decl.nice);
   std::string error;
   if (start_nice != 0 && !setProcessNice(pid, start_nice, &error))
   {
@@ -36,43 +36,62 @@ void AgentNode::setStartPriority(const std::string& name, int pid, int nice)
   }
   // Its messages carry the name it runs under here: the boost ends at the first one this agent
   // counts (a node whose output no one subscribes to here keeps it for ~start_boost_s).
+  std::lock_guard<std::mutex> lock(boost_mutex_);
+  boosts_.started(name, publisherName(name), pid, decl.nice, decl.output_tolerance_s, steadyNow());
+}
+
+void AgentNode::watchOutput(const NodeDecl& decl, const std::string& name, int pid)
+{
+  std::lock_guard<std::mutex> lock(boost_mutex_);
+  boosts_.watch(name, publisherName(name), pid, decl.nice, decl.output_tolerance_s);
+}
+
+std::string AgentNode::publisherName(const std::string& name) const
+{
   std::string publisher = rosName(name);
   if (publisher.empty() || publisher[0] != '/')
     publisher.insert(0, "/");
-  std::lock_guard<std::mutex> lock(boost_mutex_);
-  boosts_.started(name, publisher, pid, nice, steadyNow());
+  return publisher;
 }
 
 void AgentNode::endBoostAtOutput(const std::string& publisher)
 {
-  std::optional<StartBoosts::Due> due;
+  std::optional<OutputBoosts::Change> back;
   {
     std::lock_guard<std::mutex> lock(boost_mutex_);
     if (boosts_.empty())
       return;
-    due = boosts_.published(publisher);
+    back = boosts_.published(publisher, steadyNow());
   }
-  if (due)
-    endBoost(*due);
+  if (back)
+    applyBoost(*back);
 }
 
-void AgentNode::endBoosts()
+void AgentNode::updateBoosts()
 {
-  std::vector<StartBoosts::Due> due;
+  std::vector<OutputBoosts::Change> changes;
   {
     std::lock_guard<std::mutex> lock(boost_mutex_);
-    due = boosts_.takeDue(steadyNow());
+    if (boosts_.empty())
+      return;
+    changes = boosts_.update(steadyNow(), [this](const std::string& name, int pid) {
+      const auto info = supervisor_.info(name);
+      // A paused node is silent by design; one that starts is not yet registered (Starting).
+      return info && info->pid == pid && (info->state == ProcState::Running || info->state == ProcState::Starting);
+    });
   }
-  for (const auto& boost : due)
-    endBoost(boost);
+  for (const auto& change : changes)
+    applyBoost(change);
 }
 
-void AgentNode::endBoost(const StartBoosts::Due& boost)
+void AgentNode::applyBoost(const OutputBoosts::Change& change)
 {
-  const auto info = supervisor_.info(boost.name);
+  const auto info = supervisor_.info(change.name);
   std::string error;
-  if (info && info->pid == boost.pid && !setProcessNice(boost.pid, boost.nice, &error))
-    ROS_WARN("%s: could not end its start priority: %s", boost.name.c_str(), error.c_str());
+  if (info && info->pid == change.pid && !setProcessNice(change.pid, change.nice, &error))
+    ROS_WARN("%s: could not set its nice to %d: %s", change.name.c_str(), change.nice, error.c_str());
+  else
+    ROS_DEBUG("%s (pid %d) now at nice %d", change.name.c_str(), change.pid, change.nice);
 }
 
 }  // namespace anyscale_agent

@@ -32,6 +32,8 @@ void AgentNode::adoptNodes(const std::string& state_file)
     std::string error;
     if (p.state != ProcState::Stopping && !setProcessNice(p.pid, decl->nice, &error))
       ROS_WARN("adopted %s: cannot set its nice to %d: %s", p.name.c_str(), decl->nice, error.c_str());
+    else if (p.state != ProcState::Stopping)
+      watchOutput(*decl, p.name, p.pid);
     if (a.lease_end_s <= 0.0 || p.state == ProcState::Stopping)
       continue;
     if (a.lease_end_s <= now)

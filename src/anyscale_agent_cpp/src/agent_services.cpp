@@ -103,7 +103,7 @@ void AgentNode::startNode(const anyscale_msgs::StartNode::Request& req, anyscale
       std::string error;
       if (const int pid = supervisor_.resume(name, &error); pid > 0)
       {
-        setStartPriority(name, pid, decl->nice);
+        setStartPriority(*decl, name, pid);
         grantLease(name, req.lease_s);
         res.success = true;
         res.pid = pid;
@@ -158,7 +158,7 @@ void AgentNode::startNode(const anyscale_msgs::StartNode::Request& req, anyscale
     ROS_ERROR("start_node %s", res.message.c_str());
     return;
   }
-  setStartPriority(name, pid, decl->nice);
+  setStartPriority(*decl, name, pid);
   grantLease(name, req.lease_s);
   res.success = true;
   res.pid = pid;

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <filesystem>
 #include <sstream>
 
@@ -164,7 +165,33 @@ NodeModel NodeModel::parse(const YAML::Node& root, const std::string& source)
     }
     model.nodes_.emplace(d.name, std::move(d));
   }
+  model.readOutputTolerances(root["connections"], source);
   return model;
+}
+
+void NodeModel::readOutputTolerances(const YAML::Node& connections, const std::string& source)
+{
+  if (!connections)
+    return;
+  if (!connections.IsSequence())
+    throw ModelError(source + ": 'connections' must be a list");
+  std::size_t index = 0;
+  for (const auto& c : connections)
+  {
+    const std::string at = source + ": connections[" + std::to_string(index++) + "]";
+    if (!c.IsMap())
+      throw ModelError(at + ": expected a map");
+    const std::string publisher = scalarAt(c, "publisher", at, true);
+    double tolerance = 0.0;
+    if (const YAML::Node t = c["tolerance"])
+      if (!t.IsScalar() || !YAML::convert<double>::decode(t, tolerance) || !std::isfinite(tolerance) || tolerance < 0.0)
+        throw ModelError(at + " (publisher '" + publisher + "'): 'tolerance' must be a number of seconds >= 0");
+    const auto node = nodes_.find(publisher);
+    if (node == nodes_.end() || tolerance <= 0.0)
+      continue;  // an unknown publisher is the decision node's error to report
+    double& smallest = node->second.output_tolerance_s;
+    smallest = smallest > 0.0 ? std::min(smallest, tolerance) : tolerance;
+  }
 }
 
 const NodeDecl* NodeModel::find(const std::string& name) const

@@ -2,7 +2,8 @@
 """rostest: a watched topic that a node the agent runs subscribes to is counted from that node's
 getBusStats (roscpp and rospy), close to the published rate, with no subscription of the agent's;
 a frozen node leaves its topic without data and the agent's status running; the start boost of
-a node still ends at its first output counted that way."""
+a node still ends at its first output counted that way, and a node whose output is late is
+boosted until its next message."""
 import os
 import signal
 import statistics
@@ -138,6 +139,38 @@ class AgentBusStatsTest(unittest.TestCase):
                 self.agent.stop(node="talker_cpp", wait=True)
         finally:
             self.agent.stop(node="relay_cpp_chatter", wait=True)
+
+    def test_a_late_output_is_boosted_until_its_next_message(self):
+        if os.geteuid() != 0:
+            self.skipTest("the late boost raises a node's priority (nice -5): needs root or CAP_SYS_NICE")
+        res = self.agent.set_watched(topics=["/late_chatter"], subscribers=["/relay_late_chatter"])
+        self.assertTrue(res.success, res.message)
+        relay = self.agent.start(node="relay_late_chatter", param_overrides=[], lease_s=0.0)
+        self.assertTrue(relay.success, relay.message)
+        try:
+            self.assertTrue(wait_for(lambda: self.latest("/late_chatter") is not None, 10.0))
+            talker = self.agent.start(node="late_talker", param_overrides=[], lease_s=0.0)
+            self.assertTrue(talker.success, talker.message)
+            nice = lambda: os.getpriority(os.PRIO_PROCESS, talker.pid)  # noqa: E731
+            try:
+                self.assertTrue(wait_for(lambda: nice() == 5, 10.0),
+                                "the start boost did not end at the first output (nice %d)" % nice())
+                time.sleep(1.0)
+                self.assertEqual(nice(), 5, "boosted while it published at 10 Hz")
+                # Silent for longer than half its tolerance of 1 s: raised while still silent.
+                os.kill(talker.pid, signal.SIGSTOP)
+                try:
+                    frozen = time.monotonic()
+                    self.assertTrue(wait_for(lambda: nice() == -5, 3.0), "not boosted while silent (nice %d)" % nice())
+                    print("late_talker boosted %.2f s into its silence" % (time.monotonic() - frozen))
+                    self.assertGreaterEqual(time.monotonic() - frozen, 0.5)
+                finally:
+                    os.kill(talker.pid, signal.SIGCONT)
+                self.assertTrue(wait_for(lambda: nice() == 5, 3.0), "the boost did not end at its next message")
+            finally:
+                self.agent.stop(node="late_talker", wait=True)
+        finally:
+            self.agent.stop(node="relay_late_chatter", wait=True)
 
 
 if __name__ == "__main__":

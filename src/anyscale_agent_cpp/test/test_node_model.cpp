@@ -57,6 +57,21 @@ TEST(NodeModel, ParsesDeclaredNodes)
   EXPECT_EQ(m.find("teleop"), nullptr);
 }
 
+TEST(NodeModel, AnOutputsToleranceIsTheSmallestOfItsConnections)
+{
+  const auto m = NodeModel::parse(YAML::Load(std::string(kModel) + R"(
+connections:
+  - {publisher: amcl, subscriber: ekf, topic: /amcl_pose, tolerance: 2}
+  - {publisher: amcl, subscriber: nav, topic: /amcl_pose, tolerance: 0.5}
+  - {publisher: amcl, subscriber: viz, topic: /amcl_pose, tolerance: 0}
+  - {publisher: robot/camera, subscriber: ar, topic: /image}
+  - {publisher: not_declared, subscriber: ar, topic: /x, tolerance: 1}
+)"), "test.yaml");
+  EXPECT_DOUBLE_EQ(m.find("amcl")->output_tolerance_s, 0.5);  // 0: no tolerance, not the smallest
+  EXPECT_DOUBLE_EQ(m.find("robot/camera")->output_tolerance_s, 0.0);
+  EXPECT_DOUBLE_EQ(NodeModel::parse(YAML::Load(kModel), "test.yaml").find("amcl")->output_tolerance_s, 0.0);
+}
+
 TEST(NodeModel, ArgvHasArgsRemapsAndName)
 {
   const auto m = NodeModel::parse(YAML::Load(kModel), "test.yaml");
@@ -128,6 +143,15 @@ TEST(NodeModel, ErrorsNameTheNodeAndKey)
   for (const char* bad : { "20", "-21", "2.5", "high" })
     EXPECT_NE(error_of(std::string("nodes: [{name: a, launch: {package: p, type: t, nice: ") + bad + "}}]")
                   .find("launch.nice must be an integer from -20 to 19"),
+              std::string::npos)
+        << bad;
+  const std::string node = "nodes: [{name: a, launch: {package: p, type: t}}]\n";
+  EXPECT_NE(error_of(node + "connections: {a: b}").find("'connections' must be a list"), std::string::npos);
+  EXPECT_NE(error_of(node + "connections: [{subscriber: b}]").find("connections[0]: missing key 'publisher'"),
+            std::string::npos);
+  for (const char* bad : { "-1", "soon", "[1]", ".nan" })
+    EXPECT_NE(error_of(node + "connections: [{publisher: a, tolerance: " + bad + "}]")
+                  .find("connections[0] (publisher 'a'): 'tolerance' must be a number of seconds >= 0"),
               std::string::npos)
         << bad;
   try

@@ -74,6 +74,12 @@ def test_the_tolerance_bench_passes_normalise_cpu_only_when_asked_for(tolerances
     assert argv.count("--normalise-cpu") == 1 and argv[argv.index("--out") + 1] == "out/run01"
 
 
+def test_the_tolerance_bench_passes_the_late_boost_only_when_asked_for(tolerances):
+    assert "--late-boost-fraction" not in tolerances.run_argv(tolerances.parse_args([]), 0, 11, "o")
+    off = tolerances.run_argv(tolerances.parse_args(["--late-boost-fraction", "0"]), 0, 11, "o")
+    assert off[off.index("--late-boost-fraction") + 1] == "0"
+
+
 def test_the_tolerance_bench_runs_at_the_quota_for_the_day_or_the_one_given(tolerances, capsys):
     assert tolerances.parse_args([]).robot_cpu is None          # auto: found before each run
     assert "--robot-cpu" not in tolerances.run_argv(tolerances.parse_args([]), 0, 11, "out/run01")

@@ -2,7 +2,7 @@
 --normalise-cpu and the calibration's reference_cpu_ms it needs."""
 import pytest
 
-from anyscale_testbed.demo_run import hold_args, parse_args
+from anyscale_testbed.demo_run import parse_args, robot_launch_args
 
 
 def test_seed_defaults_to_the_deterministic_model_and_passes_through():
@@ -182,8 +182,16 @@ def test_loops_repeat_the_loop_from_where_the_robot_starts():
     assert len(loop) == 3 * (len(twice) // 2) and loop[-1][:3] == at1
 
 
-def test_the_holds_after_a_loss_reach_robot_launch_only_when_given():
-    assert hold_args(parse_args([], "out")) == []
-    assert hold_args(parse_args(["--hold-after-loss", "30", "--amcl-hold-after-loss", "20"],
-                                "out")) == ["hold_after_loss_s:=30.0",
-                                            "node_hold_after_loss_s:={amcl: 20.0}"]
+def test_the_holds_and_the_late_boost_reach_robot_launch_only_when_given():
+    assert robot_launch_args(parse_args([], "out")) == []
+    assert robot_launch_args(parse_args(["--hold-after-loss", "30", "--amcl-hold-after-loss",
+                                         "20", "--late-boost-fraction", "0"], "out")) == [
+        "late_boost_fraction:=0", "hold_after_loss_s:=30.0",
+        "node_hold_after_loss_s:={amcl: 20.0}"]
+
+
+def test_a_late_boost_fraction_outside_0_1_is_one_line(capsys):
+    with pytest.raises(SystemExit) as ended:
+        parse_args(["--late-boost-fraction", "1.5"], "out")
+    assert ended.value.code == 2
+    assert "--late-boost-fraction: expected 0-1, got 1.5" in capsys.readouterr().err

@@ -24,7 +24,7 @@
 #include "anyscale_agent_cpp/link_monitor.h"
 #include "anyscale_agent_cpp/master_call_watchdog.h"
 #include "anyscale_agent_cpp/node_model.h"
-#include "anyscale_agent_cpp/start_boosts.h"
+#include "anyscale_agent_cpp/output_boosts.h"
 #include "anyscale_agent_cpp/supervisor.h"
 #include "anyscale_agent_cpp/system_sampler.h"
 #include "anyscale_agent_cpp/topic_watcher.h"
@@ -80,12 +80,15 @@ private:
   void grantLease(const std::string& name, double lease_s);
 
   // Priorities (agent_priority.cpp): the agent's ~control_nice; a node's launch.nice, at
-  // ~start_boost_nice from its start until its first output, for ~start_boost_s at most.
+  // ~start_boost_nice from its start until its first output, and while its output is late
+  // (~late_boost_fraction of its tolerance), for ~start_boost_s at most (OutputBoosts).
   void raiseControlPriority(int control_nice);
-  void setStartPriority(const std::string& name, int pid, int nice);
-  void endBoosts();                                       // on the supervision thread
+  void setStartPriority(const NodeDecl& decl, const std::string& name, int pid);
+  void watchOutput(const NodeDecl& decl, const std::string& name, int pid);  // an adopted node
+  void updateBoosts();                                     // on the supervision thread
   void endBoostAtOutput(const std::string& publisher);    // in a topic counter's thread
-  void endBoost(const StartBoosts::Due& boost);
+  void applyBoost(const OutputBoosts::Change& change);
+  std::string publisherName(const std::string& name) const;  // the caller id of its messages
 
   // Warm standbys (agent_services.cpp): one per warm_start node, also while it runs here.
   void keepStandbysReady();
@@ -121,7 +124,7 @@ private:
   std::set<std::string> ended_unasked_;   // nodes that ended unasked here: standbys import at once
   std::map<std::string, double> standby_due_;  // node -> steady time its standby may start
   std::map<std::string, int> last_standby_pid_;  // node -> pid of the standby started last
-  StartBoosts boosts_;              // ~start_boost_nice, ~start_boost_s
+  OutputBoosts boosts_;             // ~start_boost_nice, ~start_boost_s, ~late_boost_fraction
   std::mutex boost_mutex_;
   std::string uplink_interface_;    // ~uplink_interface: whose carrier loss cuts the other scales off
   std::atomic<bool> uplink_up_{ true };

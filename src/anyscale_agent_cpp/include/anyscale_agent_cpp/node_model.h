@@ -29,6 +29,9 @@ struct NodeDecl
   YAML::Node params;  // map of private parameters (may be null)
   bool warm_start = false;  // keep a warm standby (scripts/python_standby) on every scale
   int nice = 0;             // CPU priority it runs at, -20..19 (roslaunch: launch-prefix="nice -n N")
+  // The smallest tolerance (s) of the model's connections this node publishes, 0 if none has
+  // one: how long its output may stay below the connection's minimum rate (OutputBoosts).
+  double output_tolerance_s = 0.0;
 };
 
 // Package name -> its source/share directory, or "" if unknown (rospack in the ROS layer).
@@ -37,8 +40,9 @@ using PackageLocator = std::function<std::string(const std::string&)>;
 class NodeModel
 {
 public:
-  // Reads the `nodes` list of a system model. Throws ModelError naming the file, the node and
-  // the key that is wrong. The rest of the model is the decision node's business.
+  // Reads the `nodes` list of a system model, and the tolerance of each node's output from its
+  // `connections`. Throws ModelError naming the file, the node or connection and the key that
+  // is wrong. The rest of the model is the decision node's business.
   static NodeModel load(const std::string& path);
   static NodeModel parse(const YAML::Node& root, const std::string& source);
 
@@ -47,6 +51,8 @@ public:
   std::vector<std::string> names() const;
 
 private:
+  void readOutputTolerances(const YAML::Node& connections, const std::string& source);
+
   std::map<std::string, NodeDecl> nodes_;
 };
 

@@ -136,6 +136,10 @@ def parse_args(argv, default_out: str):
     p.add_argument("--amcl-hold-after-loss", type=float, default=None, metavar="S",
                    help="AMCL's own hold after a link loss (default: robot.launch's, 0: only "
                         "the bandwidth hold; 20 gives the rule of the evaluation of 2026-11-27)")
+    p.add_argument("--late-boost-fraction", type=float, default=None, metavar="F",
+                   help="robot.launch's late_boost_fraction: a node on the robot whose output "
+                        "stays silent for F x its tolerance runs at the start boost's nice until "
+                        "its next message (default: robot.launch's, 0.5; 0: none, to compare)")
     p.add_argument("--model", default=None, help="system model (default: the nav demo's)")
     p.add_argument("--cold-start", action="store_true",
                    help="agents keep no warm standbys: every start imports anew (to compare)")
@@ -153,6 +157,8 @@ def parse_args(argv, default_out: str):
         p.error(f"--schedule: expected [[t_s, Mbit/s], ...], got {args.schedule!r}")
     if args.seed < 0:
         p.error(f"--seed: expected an integer >= 0, got {args.seed}")
+    if args.late_boost_fraction is not None and not 0 <= args.late_boost_fraction <= 1:
+        p.error(f"--late-boost-fraction: expected 0-1, got {args.late_boost_fraction:g}")
     args.calibrate_robot_cpu = args.robot_cpu == "auto"
     if args.reference_cpu_ms is not None and not (args.normalise_cpu
                                                   and 0 < args.reference_cpu_ms < 1000):
@@ -300,9 +306,12 @@ def normaliser_state(normaliser: CpuNormaliser) -> str:
             f"CPU ms (calibrated at {normaliser.reference_cpu_ms:g} ms)")
 
 
-def hold_args(args) -> List[str]:
-    """robot.launch's holds after a link loss that the run's options set (none: its own)."""
+def robot_launch_args(args) -> List[str]:
+    """robot.launch's holds after a link loss and late boost that the run's options set (none:
+    its own)."""
     out = []
+    if args.late_boost_fraction is not None:
+        out.append(f"late_boost_fraction:={args.late_boost_fraction:g}")
     if args.hold_after_loss is not None:
         out.append(f"hold_after_loss_s:={args.hold_after_loss}")
     if args.amcl_hold_after_loss is not None:
@@ -342,7 +351,7 @@ def launch_demo(session: TestbedSession, bed, args, model: str, start, goals, re
         f"allocator:={args.allocator}", f"hysteresis_s:={args.hysteresis}",
         f"uplink_interface:={bed.uplink_interface('robot')}", f"warm_start:={warm}",
         f"respawn:={str(respawn).lower()}"]
-        + ([f"goals:={json.dumps(goals)}"] if goals else []) + hold_args(args))
+        + ([f"goals:={json.dumps(goals)}"] if goals else []) + robot_launch_args(args))
     session.roslaunch("laptop", "laptop", [
         "anyscale_nav_demo", "laptop.launch", f"model:={model}", f"warm_start:={warm}",
         f"respawn:={str(respawn).lower()}"])

@@ -87,8 +87,10 @@ void AgentNode::updateBoosts()
 void AgentNode::applyBoost(const OutputBoosts::Change& change)
 {
   const auto info = supervisor_.info(change.name);
+  if (!info || info->pid != change.pid)
+    return;  // ended or started again meanwhile: its new process has its own priority
   std::string error;
-  if (info && info->pid == change.pid && !setProcessNice(change.pid, change.nice, &error))
+  if (!setProcessNice(change.pid, change.nice, &error))
     ROS_WARN("%s: could not set its nice to %d: %s", change.name.c_str(), change.nice, error.c_str());
   else
     ROS_DEBUG("%s (pid %d) now at nice %d", change.name.c_str(), change.pid, change.nice);

@@ -121,7 +121,7 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
                                            param(pnh_, "count_by_bus_stats", false),
                                            positive(pnh_, "bus_stats_period_s", 0.25),
                                            positive(pnh_, "bus_stats_timeout_s", 0.25),
-                                           [this](const std::string& publisher) { endBoostAtOutput(publisher); });
+                                           [this](const std::string& publisher) { outputSeen(publisher); });
   std::string error;
   if (!topics_->setWatched(param(pnh_, "watched_topics", std::vector<std::string>{}), {}, &error))
     throw std::runtime_error("parameter ~watched_topics: " + error);

@@ -54,7 +54,7 @@ std::string AgentNode::publisherName(const std::string& name) const
   return publisher;
 }
 
-void AgentNode::endBoostAtOutput(const std::string& publisher)
+void AgentNode::outputSeen(const std::string& publisher)
 {
   std::optional<OutputBoosts::Change> back;
   {

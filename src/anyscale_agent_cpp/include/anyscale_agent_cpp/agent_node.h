@@ -86,7 +86,7 @@ private:
   void setStartPriority(const NodeDecl& decl, const std::string& name, int pid);
   void watchOutput(const NodeDecl& decl, const std::string& name, int pid);  // an adopted node
   void updateBoosts();                                     // on the supervision thread
-  void endBoostAtOutput(const std::string& publisher);    // in a topic counter's thread
+  void outputSeen(const std::string& publisher);    // a message counted, in a topic counter's thread: ends a boost, dates the output
   void applyBoost(const OutputBoosts::Change& change);
   std::string publisherName(const std::string& name) const;  // the caller id of its messages
 

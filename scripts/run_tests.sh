@@ -22,7 +22,7 @@ make -C build -j1 run_tests > "$logs/run_tests.log" 2>&1 \
   || { status=1; tail -n 40 "$logs/run_tests.log"; }
 
 echo "== pytest"
-/usr/bin/python3 -m pytest -q -p no:cacheprovider --durations=15 --junitxml="$results/pytest/pytest.xml" \
+/usr/bin/python3 -m pytest -q -rs -p no:cacheprovider --durations=15 --junitxml="$results/pytest/pytest.xml" \
   src tests 2>&1 | tee "$logs/pytest.log" | tail -n 45
 rc=${PIPESTATUS[0]}
 # exit 5: nothing collected, not a failure in itself

@@ -6,9 +6,27 @@ import time
 
 import pytest
 
-from anyscale_testbed.host_speed import (CpuNormaliser, HostSpeedMonitor, RollingMedian,
-                                         normalised_cores, reference_workload, workload_cpu_ms)
+from anyscale_testbed.host_speed import (FIXED_QUOTA_TESTS_MAX_MS, CpuNormaliser,
+                                         HostSpeedMonitor, RollingMedian, idle_cpu_ms,
+                                         normalised_cores, reference_workload,
+                                         too_slow_for_fixed_quotas, workload_cpu_ms)
 from anyscale_testbed.two_scale_testbed import CpuQuota
+
+
+# --- the gate of the system tests at fixed quotas ---------------------------------------------
+def test_the_idle_reading_is_the_median_of_its_samples():
+    readings = iter([9.0, 45.0, 10.0, 11.0, 8.0])
+    assert idle_cpu_ms(5, lambda: next(readings)) == 10.0
+    with pytest.raises(ValueError, match="at least one sample"):
+        idle_cpu_ms(0)
+
+
+def test_a_host_as_fast_as_the_green_runs_passes_the_gate_and_a_slow_one_is_told_why():
+    assert too_slow_for_fixed_quotas(10.7) is None            # 2026-11-24, idle
+    assert too_slow_for_fixed_quotas(FIXED_QUOTA_TESTS_MAX_MS) is None
+    why = too_slow_for_fixed_quotas(43.2)                      # 2026-11-28, idle
+    assert "43.2 ms" in why and f"{FIXED_QUOTA_TESTS_MAX_MS:g} ms" in why
+    assert too_slow_for_fixed_quotas(12.0, limit_ms=11.0) is not None
 
 
 # --- normalised_cores -----------------------------------------------------------------------

@@ -23,6 +23,10 @@ from anyscale_testbed.soak_run import soak_model
 from anyscale_testbed.soak_silences import unchecked
 from anyscale_testbed.testbed_record import TestbedRecord
 
+# Judges each fault's recovery time and every tolerance at the bed's quotas;
+# skipped on a host too slow for them (conftest.py).
+pytestmark = pytest.mark.fixed_cpu_quota
+
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "..", ".."))
 BENCH = os.path.join(ROOT, "tests", "bench", "bench_fault_soak.py")
 MINUTES = 0.5

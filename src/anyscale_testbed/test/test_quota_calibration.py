@@ -53,6 +53,25 @@ def test_calibration_gives_up_after_its_runs_with_the_last_step_unmeasured():
     assert "not settled after 3 runs" in lines[-1] and "unmeasured" in lines[-1]
 
 
+def test_a_host_too_slow_for_the_premise_ends_at_the_upper_bound_after_one_run_there():
+    # 2026-11-28, the main command: 0.64 Hz at 0.34 cores, 1.83 Hz at 0.8, then 0.8 again.
+    lines, measured = [], []
+    readings = {0.34: 0.64, QUOTA_BOUNDS[1]: 1.83}
+    quota, points = calibrate_quota(0.34, lambda q: measured.append(q) or readings[q],
+                                    lines.append)
+    assert measured == [0.34, QUOTA_BOUNDS[1]] and quota == QUOTA_BOUNDS[1]
+    assert "next 0.8 cores" in lines[0]
+    assert "1.83 Hz at home, below" in lines[-1] and "upper bound" in lines[-1]
+    assert "too slow for the premise" in lines[-1] and "off the premise" in lines[-1]
+
+
+def test_a_host_too_fast_for_the_premise_ends_at_the_lower_bound():
+    lines = []
+    quota, points = calibrate_quota(QUOTA_BOUNDS[0], lambda q: 4.0, lines.append)
+    assert quota == QUOTA_BOUNDS[0] and len(points) == 1
+    assert "above" in lines[-1] and "lower bound" in lines[-1] and "too fast" in lines[-1]
+
+
 @pytest.mark.parametrize("hz", [math.nan, 0.0])
 def test_a_run_without_amcl_rate_stops_the_calibration(hz):
     with pytest.raises(CalibrationError, match="at 0.34 cores gave no AMCL rate"):

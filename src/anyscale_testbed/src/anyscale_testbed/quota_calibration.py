@@ -63,7 +63,9 @@ def calibrate_quota(start_quota: float, measure: Callable[[float], float],
                     max_runs: int = MAX_RUNS) -> Tuple[float, List[QuotaPoint]]:
     """Measures AMCL's rate at start_quota, steps towards the premise until a measurement
     settles or max_runs were made; returns the quota to run at and the measurements. After
-    max_runs without settling it is the last step's quota, not measured (said in the log)."""
+    max_runs without settling it is the last step's quota, not measured (said in the log); a
+    step that stays at the bound just measured ends it there (the host too slow or too fast
+    for the premise within QUOTA_BOUNDS, said in the log)."""
     quota, points = start_quota, []
     for k in range(1, max_runs + 1):
         hz = measure(quota)
@@ -74,9 +76,23 @@ def calibrate_quota(start_quota: float, measure: Callable[[float], float],
             log(f"calibration: robot {quota:g} cores, AMCL {hz:.2f} Hz at home: kept")
             return quota, points
         step = next_quota(points)
+        if step == quota and quota in QUOTA_BOUNDS:
+            # Clipped to the bound just measured: another run there would read the same.
+            log(off_premise_at_bound(points[-1]))
+            return quota, points
         log(f"calibration: robot {quota:g} cores, AMCL {hz:.2f} Hz at home "
             f"(premise {SETTLED_HZ[0]:g}-{SETTLED_HZ[1]:g} Hz): next {step:g} cores")
         quota = step
     log(f"calibration: not settled after {max_runs} runs; running at {quota:g} cores, "
         f"the last step, unmeasured")
     return quota, points
+
+
+def off_premise_at_bound(point: QuotaPoint) -> str:
+    """The line for a calibration that ends at one of QUOTA_BOUNDS off the premise."""
+    slow = point.amcl_hz < SETTLED_HZ[0]
+    return (f"calibration: robot {point.quota:g} cores, AMCL {point.amcl_hz:.2f} Hz at home, "
+            f"{'below' if slow else 'above'} the premise's {SETTLED_HZ[0]:g}-{SETTLED_HZ[1]:g} "
+            f"Hz at the quota's {'upper' if slow else 'lower'} bound: this host is too "
+            f"{'slow' if slow else 'fast'} for the premise now; running at {point.quota:g} "
+            f"cores, off the premise")

@@ -66,6 +66,28 @@ def test_a_node_paused_at_home_that_fails_out_there_comes_home_and_stays_for_t(e
     assert [(e.kind, e.node) for e in moved.events] == [("migrate", "amcl")]
 
 
+def test_a_status_sampled_before_a_start_was_answered_is_no_crash_of_it_however_late(engine):
+    # The main command on 2026-11-28: AMCL's laptop instance stopped (signal 9, the agent's
+    # kill once it had left the master) during a 10 s link loss; AMCL moved out again when the
+    # link came back, and a laptop status sampled during the loss, queued on the old
+    # connection, arrived 0.14 s after that start was answered: it read as a crash of the new
+    # instance and sent AMCL home again.
+    engine.tick(reports(1.0), 1.0)
+    assert engine.mapping()["amcl"] == "laptop"
+    engine.start_acknowledged("amcl", 9.5)
+    stale = reports(10.0, laptop_running=("ar_recognition",))
+    stale["laptop"] = dataclasses.replace(stale["laptop"], ended={"amcl": "signal 9"},
+                                          sampled_at=9.0)
+    assert [e for e in engine.tick(stale, 10.0).events if e.node == "amcl"] == []
+    assert engine.mapping()["amcl"] == "laptop"
+    # Sampled after the answer, the same report is the new instance's end.
+    fresh = reports(10.5, laptop_running=("ar_recognition",))
+    fresh["laptop"] = dataclasses.replace(fresh["laptop"], ended={"amcl": "signal 9"},
+                                          sampled_at=10.4)
+    assert [(e.kind, e.node) for e in engine.tick(fresh, 10.5).events] == [("migrate_back",
+                                                                           "amcl")]
+
+
 def crashed_ekf_restarts(e, t, starting=frozenset(), moves_allowed=True):
     r = reports(t, laptop=False)
     r["robot"] = dataclasses.replace(r["robot"], ended={"ekf": "signal 6"})

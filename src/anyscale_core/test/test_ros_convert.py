@@ -44,6 +44,13 @@ def test_scale_report_keeps_live_model_nodes_and_effective_rates():
     assert r.link_up and r.bandwidth_mbps == 12.5
 
 
+def test_a_report_is_dated_by_its_stamp_not_by_its_arrival():
+    assert conv.scale_report_from_msg(status(), 12.0, [], 3.5).sample_time() == 8.5
+    assert conv.scale_report_from_msg(status(), 12.0, [], -0.2).sample_time() == 12.0  # clock ahead
+    assert conv.scale_report_from_msg(status(), 12.0, []).sample_time() == 12.0
+    assert conv.scale_report_from_msg(status(), 12.0, [], math.nan).sample_time() == 12.0
+
+
 def test_scale_report_uses_the_quota_and_the_masters_link_is_its_uplink_carrier():
     msg = status("robot", True, cpu_quota_cores=1.5)
     msg.link = LinkStatistics(up=True, bandwidth_mbps=float("nan"), carrier=True)

@@ -332,8 +332,10 @@ class DecisionEngine:
         again (roslaunch's respawn) as their back-off allows: a crash, a node that exits when an
         input is missing at its start, or a clean exit the master asked for. A node paused at
         home comes home instead (_crashed_out_comes_home). Only reports
-        received after the node's latest start was answered count: an earlier one may still
-        show the instance that start replaced."""
+        sampled after the node's latest start was answered count: an earlier one may still
+        show the instance that start replaced, also when it arrives late (ScaleReport.sampled_at:
+        a laptop status queued through a 10 s link loss showed the instance its move back had
+        stopped, signal 9, and it arrived just after AMCL's next move out was answered)."""
         actions, events = [], []
         for i, name in enumerate(self.ch.node_names):
             k = int(self.assign[i])
@@ -342,7 +344,7 @@ class DecisionEngine:
             if (i in moved or report is None or not up[k] or name not in report.ended
                     or name in starting
                     or now - report.received_at > self.params.status_timeout_s
-                    or report.received_at <= self.start_acked_at.get(i, -math.inf)
+                    or report.sample_time() <= self.start_acked_at.get(i, -math.inf)
                     or not self.backoff[i].due(now)):
                 continue
             self.backoff[i].restarted(now)
@@ -365,8 +367,9 @@ class DecisionEngine:
         published beside the laptop's for 17.8 s; at home no lease would ever have ended it.
         A remote instance that the link's return brings back into reach before its lease runs
         out is one too, stopped here at once instead of at the lease's end. Only fresh reports
-        received after the node's latest start and stop were answered count: an earlier one
-        may still show an instance that the stop has ended since."""
+        sampled after the node's latest start and stop were answered count: an earlier one
+        may still show an instance that the stop has ended since (also one that arrives late:
+        ScaleReport.sampled_at)."""
         stops = []
         for i, name in enumerate(self.ch.node_names):
             if name in busy:
@@ -376,7 +379,7 @@ class DecisionEngine:
             for scale, report in sorted(reports.items()):
                 k = self.ch.scale_index(scale)
                 if (k == self.assign[i] or not up[k] or name not in report.running
-                        or report.received_at <= settled
+                        or report.sample_time() <= settled
                         or now - report.received_at > self.params.status_timeout_s):
                     continue
                 pause = k == self.ch.master and self.ch.model.node(name).launch.pause_at_home

@@ -117,7 +117,9 @@ class DecisionNode(AgentActions):
             rospy.logwarn_once("anyscale decision: status from scale '%s', which is not in %s",
                                msg.scale, self.params.model)
             return
-        report = conv.scale_report_from_msg(msg, time.monotonic(), self.ch.node_names)
+        age = (rospy.Time.now() - msg.header.stamp).to_sec() if not msg.header.stamp.is_zero() \
+            else math.nan
+        report = conv.scale_report_from_msg(msg, time.monotonic(), self.ch.node_names, age)
         with self.lock:
             before = self.reports.get(msg.scale)
             self.reports[msg.scale] = report

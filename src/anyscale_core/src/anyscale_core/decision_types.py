@@ -59,6 +59,13 @@ class ScaleReport:
     ended: Mapping[str, str] = field(default_factory=dict)  # node -> how it ended there
     # topic -> seconds since its last message on this scale when the agent sampled (inf: none)
     topic_silence: Mapping[str, float] = field(default_factory=dict)
+    # engine clock: when the agent took the sample, by its stamp (NaN: as received). After a
+    # link loss, statuses queued on the old connection arrive seconds after the answer to a
+    # start made since, which came on a new one: received late, they are old all the same.
+    sampled_at: float = math.nan
+
+    def sample_time(self) -> float:
+        return self.sampled_at if math.isfinite(self.sampled_at) else self.received_at
 
 
 def effective_rate(rate_hz: float, last_message_age_s: float) -> float:

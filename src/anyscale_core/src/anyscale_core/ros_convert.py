@@ -24,9 +24,12 @@ def model_node_name(process_name: str) -> str:
     return process_name[1:] if process_name.startswith("/") else process_name
 
 
-def scale_report_from_msg(msg, received_at: float, model_node_names: Iterable[str]) -> ScaleReport:
+def scale_report_from_msg(msg, received_at: float, model_node_names: Iterable[str],
+                          sample_age_s: float = 0.0) -> ScaleReport:
     """A ScaleStatus as the engine's ScaleReport; nodes outside the model are left out (their
-    CPU then counts as background load, which is what it is)."""
+    CPU then counts as background load, which is what it is). sample_age_s: how old its stamp
+    was when it was received (the scales' clocks are synchronised, chrony on real machines); a
+    negative age (a clock ahead) counts as 0."""
     names = set(model_node_names)
     running = {model_node_name(p.name): float(p.cpu_percent) for p in msg.nodes
                if p.state in ALIVE_STATES and model_node_name(p.name) in names}
@@ -42,8 +45,10 @@ def scale_report_from_msg(msg, received_at: float, model_node_names: Iterable[st
     # no bandwidth estimate, its roscore being local.
     link_up = bool(msg.link.up)
     bandwidth = math.nan if msg.is_master else float(msg.link.bandwidth_mbps)
+    sampled_at = received_at - max(sample_age_s, 0.0) if math.isfinite(sample_age_s) \
+        else math.nan
     return ScaleReport(msg.scale, received_at, float(msg.cpu_percent), capacity, running,
-                       rates, link_up, bandwidth, standby, ended, silence)
+                       rates, link_up, bandwidth, standby, ended, silence, sampled_at)
 
 
 def how_it_ended(process) -> str:

@@ -13,7 +13,9 @@ export PATH="/usr/bin:/bin:/usr/sbin:/sbin:$PATH"
 ANYSCALE_APT_PACKAGES=(
   # build tools, ROS 1 core, build and test tooling
   cmake make g++
-  ros-core-dev catkin python3-catkin-pkg catkin-lint
+  ros-core-dev catkin python3-catkin-pkg
+  # the linters tests/test_lint.py runs
+  catkin-lint flake8 clang-format
   python3-rospy libroscpp-dev python3-roslaunch python3-rosgraph
   python3-rostest librostest-dev libgtest-dev
   python3-rostopic python3-rosnode python3-rosparam python3-rosbag
@@ -31,7 +33,7 @@ ANYSCALE_APT_PACKAGES=(
   rviz xvfb libgl1-mesa-dri
   # Python libraries for /usr/bin/python3
   python3-numpy python3-scipy python3-psutil python3-yaml python3-opencv
-  python3-matplotlib python3-pytest python3-hypothesis python3-tqdm
+  python3-matplotlib python3-pil python3-pytest python3-hypothesis python3-tqdm
   # the two-scale test bed: namespaces, shaping, processes
   iproute2 procps
 )

@@ -3,4 +3,5 @@ from setuptools import setup
 
 from catkin_pkg.python_setup import generate_distutils_setup
 
-setup(**generate_distutils_setup(packages=["anyscale_core", "anyscale_core.allocators"], package_dir={"": "src"}))
+setup(**generate_distutils_setup(packages=["anyscale_core", "anyscale_core.allocators"],
+                                 package_dir={"": "src"}))

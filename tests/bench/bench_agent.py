@@ -57,7 +57,8 @@ def model_yaml():
         nodes.append(("camera%d" % (i + 1), "test_talker_cpp",
                       {"rate": 30.0, "topic": topic, "payload_bytes": 300000}))
     for topic, rate in sorted(SMALL_RATES.items()):
-        nodes.append(("pub_" + topic.split("/")[-1], "test_talker_cpp", {"rate": float(rate), "topic": topic}))
+        nodes.append(("pub_" + topic.split("/")[-1], "test_talker_cpp",
+                      {"rate": float(rate), "topic": topic}))
     for i in range(10):
         nodes.append(("idle%d" % i, "test_talker_cpp", {"rate": 1.0, "topic": "/bench/idle%d" % i}))
     nodes.append(("talker_py", "talker.py", {"rate": 20.0, "topic": "/bench/py_out"}))
@@ -66,7 +67,8 @@ def model_yaml():
     lines = ["nodes:"]
     for name, exe, params in nodes:
         p = ", ".join("%s: %s" % (k, v) for k, v in params.items())
-        lines.append("  - {name: %s, launch: {package: anyscale_agent_cpp, type: %s, params: {%s}}}" % (name, exe, p))
+        lines.append("  - {name: %s, launch: {package: anyscale_agent_cpp, type: %s, "
+                     "params: {%s}}}" % (name, exe, p))
     return "\n".join(lines) + "\n"
 
 
@@ -98,9 +100,9 @@ class Bench:
 
     def start_agent(self):
         env = dict(os.environ, ROS_HOME=self.tmp)
-        self.agent = self.spawn([self.agent_bin, "__name:=anyscale_agent_bench", "_scale:=bench", "_is_master:=true",
-                                 "_model:=" + self.model, "_watch_all:=true", "_sample_rate_hz:=2.0",
-                                 "_sigint_timeout_s:=5.0"], env=env)
+        self.agent = self.spawn([self.agent_bin, "__name:=anyscale_agent_bench", "_scale:=bench",
+                                 "_is_master:=true", "_model:=" + self.model, "_watch_all:=true",
+                                 "_sample_rate_hz:=2.0", "_sigint_timeout_s:=5.0"], env=env)
         ns = "/anyscale/bench/"
         rospy.wait_for_service(ns + "start_node", 20)
         self.start = rospy.ServiceProxy(ns + "start_node", StartNode, persistent=False)
@@ -129,11 +131,12 @@ class Bench:
         rospy.init_node("bench_agent", disable_signals=True)
         self.start_agent()
         secs = self.args.seconds
-        print("== 1. agent CPU (%% of one core, utime+stime over %.0f s; goal <= 1 %%, K3s agent idles ~3 %%)" % secs)
+        print("== 1. agent CPU (%% of one core, utime+stime over %.0f s; goal <= 1 %%, "
+              "K3s agent idles ~3 %%)" % secs)
         idle = self.cpu_of([self.agent.pid], secs)[0]
         print("  agent, no nodes, no topics              : %6.2f %%" % idle)
-        names = ["camera1", "camera2"] + ["pub_" + t.split("/")[-1] for t in sorted(SMALL_RATES)] + \
-            ["idle%d" % i for i in range(10)]
+        names = (["camera1", "camera2"] + ["pub_" + t.split("/")[-1] for t in sorted(SMALL_RATES)]
+                 + ["idle%d" % i for i in range(10)])
         for n in names:
             r = self.start(node=n, param_overrides=[], lease_s=0.0)
             assert r.success, r.message
@@ -149,25 +152,29 @@ class Bench:
         self.watch(topics=WATCHED)
         time.sleep(3.0)
         full = self.cpu_of([self.agent.pid], secs)[0]
-        print("  agent, 20 processes, 10 watched topics  : %6.2f %%  (+ 2 x 30 Hz x 300 KB images = 18 MB/s)" % full)
+        print("  agent, 20 processes, 10 watched topics  : %6.2f %%  "
+              "(+ 2 x 30 Hz x 300 KB images = 18 MB/s)" % full)
         hz = self.spawn(["rostopic", "hz", "-w", "1000"] + WATCHED)
         time.sleep(3.0)
         both = self.cpu_of([self.agent.pid, hz.pid], secs)
-        print("  same, measured while rostopic hz runs   : %6.2f %%  vs rostopic hz on the same topics: %.2f %%"
-              " (ratio %.3f)" % (both[0], both[1], both[0] / both[1] if both[1] else float("nan")))
+        print("  same, measured while rostopic hz runs   : %6.2f %%  vs rostopic hz on the same "
+              "topics: %.2f %% (ratio %.3f)"
+              % (both[0], both[1], both[0] / both[1] if both[1] else float("nan")))
         hz.send_signal(2)
         hz.wait()
 
         print("== 2a. rate error against rostopic hz (same interval, %.0f s)" % secs)
         self.rate_errors()
-        print("== 2b. roscpp's own topic statistics (/enable_statistics) on the agent's subscriptions")
+        print("== 2b. roscpp's own topic statistics (/enable_statistics) on the agent's "
+              "subscriptions")
         self.roscpp_statistics(secs)
         print("== 2c. CPU %% error against psutil (node 'burner', %.0f s)" % secs)
         self.cpu_error(secs)
         for n in names:
             self.stop(node=n, wait=False)
         time.sleep(3.0)
-        print("== 3. start / stop latency (%d runs each; median [min, max] in ms)" % self.args.repeats)
+        print("== 3. start / stop latency (%d runs each; median [min, max] in ms)"
+              % self.args.repeats)
         self.latency("talker_py", "/bench/py_out", "rospy")
         self.latency("talker_cpp", "/bench/cpp_out", "roscpp")
 
@@ -194,7 +201,8 @@ class Bench:
             ref = ref[0] if ref else float("nan")
             err = 100.0 * (mine[t] - ref) / ref
             errors.append(abs(err))
-            print("  %-16s agent %8.3f Hz   rostopic hz %8.3f Hz   error %+6.2f %%" % (t, mine[t], ref, err))
+            print("  %-16s agent %8.3f Hz   rostopic hz %8.3f Hz   error %+6.2f %%"
+                  % (t, mine[t], ref, err))
         print("  max |error| %.2f %% (goal <= 1 %%)" % max(errors))
         for s in subs:
             s.unregister()
@@ -218,7 +226,8 @@ class Bench:
         self.watch(topics=[])
         time.sleep(1.0)
         self.watch(topics=WATCHED)
-        print("  agent CPU with roscpp statistics on: %.2f %% (compare with the 10-topic row above)" % with_stats)
+        print("  agent CPU with roscpp statistics on: %.2f %% (compare with the 10-topic row "
+              "above)" % with_stats)
         for t in WATCHED:
             msgs = [m for m in stats.get(t, []) if m.node_sub == "/anyscale_agent_bench"]
             if not msgs:
@@ -235,7 +244,8 @@ class Bench:
         time.sleep(4.0)
         first = len(self.statuses)
         ref = self.cpu_of([r.pid], secs)[0]
-        vals = [n.cpu_percent for st in self.statuses[first + 1:] for n in st.nodes if n.name == "/burner"]
+        vals = [n.cpu_percent for st in self.statuses[first + 1:]
+                for n in st.nodes if n.name == "/burner"]
         mine = sum(vals) / len(vals)
         print("  agent %.2f %%   psutil %.2f %%   difference %+.2f points (%+.1f %%)"
               % (mine, ref, mine - ref, 100.0 * (mine - ref) / ref))
@@ -253,7 +263,8 @@ class Bench:
         reply, reg, first_msg, stop, unreg = [], [], [], [], []
         for _ in range(self.args.repeats):
             got = []
-            sub = rospy.Subscriber(topic, rospy.AnyMsg, lambda m: got.append(time.monotonic()) if not got else None)
+            sub = rospy.Subscriber(topic, rospy.AnyMsg,
+                                   lambda m: got.append(time.monotonic()) if not got else None)
             time.sleep(0.5)
             t0 = time.monotonic()
             r = self.start(node=node, param_overrides=[], lease_s=0.0)
@@ -276,14 +287,15 @@ class Bench:
         def fmt(v):
             return "%7.1f [%7.1f, %7.1f]" % (1e3 * statistics.median(v), 1e3 * min(v), 1e3 * max(v))
 
-        print("  %-7s start: service reply %s  registered %s  first message %s" % (kind, fmt(reply), fmt(reg),
-                                                                                   fmt(first_msg)))
+        print("  %-7s start: service reply %s  registered %s  first message %s"
+              % (kind, fmt(reply), fmt(reg), fmt(first_msg)))
         print("  %-7s stop : process gone  %s  unregistered %s" % (kind, fmt(stop), fmt(unreg)))
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=20.0, help="length of each measurement [s]")
+    parser.add_argument("--seconds", type=float, default=20.0,
+                        help="length of each measurement [s]")
     parser.add_argument("--repeats", type=int, default=5, help="start/stop runs per node kind")
     bench = Bench(parser.parse_args())
     try:

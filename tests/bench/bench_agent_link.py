@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""Benchmark of the agent's link bandwidth estimate against a link of known rate, ICMP echo vs ROS probes.
+"""Benchmark of the agent's link bandwidth estimate against a link of known rate, ICMP echo vs
+ROS probes.
 
 Two network namespaces joined by a veth pair (`tc tbf` on both ends), roscore and the master
 scale's agent in one, a fresh remote agent per case in the other. Each case runs once with the
@@ -14,8 +15,8 @@ Then a step: the link falls from 27 to 3 Mbit/s while a UDP stream of 6 Mbit/s f
 master's namespace to the remote; it reports how long each method takes to read below 8 Mbit/s.
 Prints a table (estimate median [min, max] and estimate/rate) and the step times; asserts
 nothing. Needs root, a writable /sys/fs/cgroup/cpu, and the workspace built and sourced.
-Everything it creates (namespaces asbl<PID>_m/_r, cgroup /sys/fs/cgroup/cpu/asbl<PID>_robot, processes,
-/tmp/asbl<PID>_* files) is removed at the end, also after an error, Ctrl-C or SIGTERM.
+Everything it creates (namespaces asbl<PID>_m/_r, cgroup /sys/fs/cgroup/cpu/asbl<PID>_robot,
+processes, /tmp/asbl<PID>_* files) is removed at the end, also after an error, Ctrl-C or SIGTERM.
 
 Usage: /usr/bin/python3 tests/bench/bench_agent_link.py [--rates 27 6] [--seconds 8]
        [--conditions idle busy] [--step-in idle busy] [--step-seconds 12]
@@ -34,7 +35,8 @@ import time
 
 try:
     from anyscale_testbed.two_scale_testbed import (CFS_PERIOD_US, TwoScaleLayout, TwoScaleTestbed,
-                                                    missing_capabilities, namespace_exec, process_layout)
+                                                    missing_capabilities, namespace_exec,
+                                                    process_layout)
 except ImportError as e:
     sys.exit(f"{os.path.basename(__file__)}: {e}: source this workspace first "
              "(source devel/setup.bash; scripts/setup.sh installs and builds it)")
@@ -44,12 +46,13 @@ _BASE = process_layout("asbl", "10.213.78", PID)
 DEFAULT_QUOTA_CORES = 0.37
 # The master's end carries a CPU group (the test bed creates and removes it); its quota is set
 # per condition: none when idle, the robot's when busy.
-LAYOUT = TwoScaleLayout(robot=dataclasses.replace(_BASE.robot, cpu_cores=DEFAULT_QUOTA_CORES), laptop=_BASE.laptop)
+LAYOUT = TwoScaleLayout(robot=dataclasses.replace(_BASE.robot, cpu_cores=DEFAULT_QUOTA_CORES),
+                        laptop=_BASE.laptop)
 CGROUP_PREFIX = "asbl%d" % PID
 URI = "http://%s:11311" % LAYOUT.robot.address
 TMP = "/tmp/asbl%d" % PID
-MODEL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "src", "anyscale_agent_cpp", "test",
-                     "config", "test_model.yaml")
+MODEL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "src",
+                     "anyscale_agent_cpp", "test", "config", "test_model.yaml")
 # Both set explicitly: a private parameter given on the command line stays on the parameter
 # server after the agent ends, and the next agent of the same name would inherit it.
 METHODS = (("ICMP", ["_link_bandwidth_by_icmp:=true"]), ("ROS", ["_link_bandwidth_by_icmp:=false"]))
@@ -62,7 +65,8 @@ rospy.init_node('bench_link_reader', anonymous=True)
 seconds = float(sys.argv[1]); samples = []
 def cb(m):
     if m.scale != 'laptop': return
-    samples.append((time.time(), bool(m.link.up), float(m.link.bandwidth_mbps), float(m.link.rtt_mean_s)))
+    samples.append((time.time(), bool(m.link.up), float(m.link.bandwidth_mbps),
+                    float(m.link.rtt_mean_s)))
 rospy.Subscriber('/anyscale/status', ScaleStatus, cb)
 time.sleep(seconds)
 print(repr(samples).replace('nan', 'None'))
@@ -97,7 +101,8 @@ def log(text):
 
 
 def ros_env(end):
-    env = dict(os.environ, ROS_MASTER_URI=URI, ROS_IP=end.address, ROS_HOME="%s_home_%s" % (TMP, end.scale))
+    env = dict(os.environ, ROS_MASTER_URI=URI, ROS_IP=end.address,
+               ROS_HOME="%s_home_%s" % (TMP, end.scale))
     env.pop("ROS_HOSTNAME", None)
     return env
 
@@ -114,9 +119,10 @@ def cpu_stat(bed):
 
 def read_status(bed, seconds):
     """Starts the status reader in the master's namespace (outside the CPU group); returns it."""
-    proc = subprocess.Popen(namespace_exec(LAYOUT.robot, ["/usr/bin/python3", "-c", STATUS_READER, str(seconds)]),
-                            env=ros_env(LAYOUT.robot), stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                            text=True, start_new_session=True)
+    reader = ["/usr/bin/python3", "-c", STATUS_READER, str(seconds)]
+    proc = subprocess.Popen(namespace_exec(LAYOUT.robot, reader), env=ros_env(LAYOUT.robot),
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                            start_new_session=True)
     bed.processes.append(proc)  # ended by the teardown if the run is cut short
     return proc
 
@@ -127,9 +133,9 @@ def collect(proc, seconds):
 
 
 def start_remote_agent(bed, agent, method_args, log_path):
-    return bed.start("laptop", [agent, "__name:=anyscale_agent_laptop", "_scale:=laptop", "_master_scale:=robot",
-                                "_model:=" + MODEL] + list(method_args), env=ros_env(LAYOUT.laptop),
-                     log_path=log_path)
+    return bed.start("laptop", [agent, "__name:=anyscale_agent_laptop", "_scale:=laptop",
+                                "_master_scale:=robot", "_model:=" + MODEL] + list(method_args),
+                     env=ros_env(LAYOUT.laptop), log_path=log_path)
 
 
 def bandwidth_method(log_path):
@@ -138,7 +144,8 @@ def bandwidth_method(log_path):
         with open(log_path, errors="replace") as f:
             for line in f:
                 if "link bandwidth by" in line:
-                    return re.sub(r"\x1b\[[0-9;]*m", "", line.split("link bandwidth by", 1)[1]).strip()
+                    said = line.split("link bandwidth by", 1)[1]
+                    return re.sub(r"\x1b\[[0-9;]*m", "", said).strip()  # without colour codes
     except OSError:
         pass
     return "?"
@@ -165,8 +172,18 @@ def stop(bed, proc):
 def fmt_range(values, scale=1.0, spec="%.1f"):
     if not values:
         return "n/a"
-    return (spec + " [" + spec + ", " + spec + "]") % (statistics.median(values) / scale, min(values) / scale,
-                                                        max(values) / scale)
+    shown = (statistics.median(values) / scale, min(values) / scale, max(values) / scale)
+    return (spec + " [" + spec + ", " + spec + "]") % shown
+
+
+def fmt_or(spec, value, missing="n/a"):
+    return missing if value is None else spec % value
+
+
+def method_label(log_path, exited):
+    """The bulk probe the agent logged, and its exit status if it ended during the case."""
+    return bandwidth_method(log_path) + ("" if exited is None
+                                         else " (agent EXITED, status %d)" % exited)
 
 
 def static_case(bed, agent, method_args, rate, seconds, log_path):
@@ -179,18 +196,19 @@ def static_case(bed, agent, method_args, rate, seconds, log_path):
     rtt = [r for _, _, _, r in samples if r is not None]
     up = [u for _, u, _, _ in samples]
     return dict(bw=bw, rtt=rtt, up=100.0 * sum(up) / max(1, len(up)), n=len(samples),
-                method=bandwidth_method(log_path) + ("" if exited is None else " (agent EXITED, status %d)" % exited))
+                method=method_label(log_path, exited))
 
 
 def step_case(bed, agent, method_args, args, log_path):
     """27 Mbit/s with a 6 Mbit/s UDP stream master -> remote; then the link falls to 3 Mbit/s."""
     burst = args.burst_kbit
     bed.shape(args.step_from, burst)
-    sink = bed.start("laptop", ["/usr/bin/python3", "-c", STREAM_SINK, LAYOUT.laptop.address, str(STREAM_PORT)],
-                     cpu_quota=False)
-    # Outside the master's CPU group: the stream's rate is the case's input, not something to measure.
-    sender = bed.start("robot", ["/usr/bin/python3", "-c", STREAM_SENDER, LAYOUT.laptop.address, str(STREAM_PORT),
-                                 str(args.stream_mbps)], cpu_quota=False)
+    sink = bed.start("laptop", ["/usr/bin/python3", "-c", STREAM_SINK, LAYOUT.laptop.address,
+                                str(STREAM_PORT)], cpu_quota=False)
+    # Outside the master's CPU group: the stream's rate is the case's input, not something to
+    # measure.
+    sender = bed.start("robot", ["/usr/bin/python3", "-c", STREAM_SENDER, LAYOUT.laptop.address,
+                                 str(STREAM_PORT), str(args.stream_mbps)], cpu_quota=False)
     remote = start_remote_agent(bed, agent, method_args, log_path)
     time.sleep(args.step_settle)
     pre = 5.0
@@ -211,67 +229,77 @@ def step_case(bed, agent, method_args, args, log_path):
         if b != last:
             timeline.append("%+.1f s %s" % (dt, "n/a" if b is None else "%.1f" % b))
             last = b
-    return dict(before=before[-1] if before else None, detect=below[0] if below else None, timeline=timeline,
-                final=known[-1] if known else None, after=known,
+    return dict(before=before[-1] if before else None, detect=below[0] if below else None,
+                timeline=timeline, final=known[-1] if known else None, after=known,
                 nan=sum(1 for _, _, b in after if b is None), n_after=len(after),
-                method=bandwidth_method(log_path) + ("" if exited is None else " (agent EXITED, status %d)" % exited))
+                method=method_label(log_path, exited))
 
 
 def report(args, rows, steps, throttling):
-    print("link bandwidth estimate of a fresh remote agent per case: bulk probe %s (agent defaults: 32 KiB every"
-          " 2 s); tbf burst %s latency 50ms on both ends; %.0f s sampled per case at 2 Hz"
-          % ("ICMP echo vs ROS probes", args.burst, args.seconds))
-    print("idle: master's roscore + agent alone; busy: the same in a cgroup at %.2f cores (cfs_quota_us %d / %d)"
-          " with %d busy loops at nice 5" % (args.quota_cores, int(args.quota_cores * CFS_PERIOD_US),
-                                            CFS_PERIOD_US, args.hogs))
+    print("link bandwidth estimate of a fresh remote agent per case: bulk probe %s (agent "
+          "defaults: 32 KiB every 2 s); tbf burst %s latency 50ms on both ends; %.0f s sampled "
+          "per case at 2 Hz" % ("ICMP echo vs ROS probes", args.burst, args.seconds))
+    print("idle: master's roscore + agent alone; busy: the same in a cgroup at %.2f cores "
+          "(cfs_quota_us %d / %d) with %d busy loops at nice 5"
+          % (args.quota_cores, int(args.quota_cores * CFS_PERIOD_US), CFS_PERIOD_US, args.hogs))
     if throttling:
         print("busy group during the busy cases: throttled in %d of %d CFS periods"
               % (throttling.get("nr_throttled", 0), throttling.get("nr_periods", 0)))
     if rows:
         print("  %-10s %-10s %-7s %-26s %-20s %-8s %-10s %s"
-              % ("condition", "rate", "method", "estimate median [min, max]", "estimate/rate", "samples",
-                 "RTT mean", "up"))
+              % ("condition", "rate", "method", "estimate median [min, max]", "estimate/rate",
+                 "samples", "RTT mean", "up"))
     for r in rows:
         print("  %-10s %-10s %-7s %-26s %-20s %-8s %-10s %.0f %%"
               % (r["condition"], "%g Mbit/s" % r["rate"], r["name"], fmt_range(r["bw"]),
                  fmt_range(r["bw"], r["rate"], "%.2f"), "%d/%d" % (len(r["bw"]), r["n"]),
                  "%.2f ms" % (1e3 * statistics.mean(r["rtt"])) if r["rtt"] else "n/a", r["up"]))
     if steps:
-        print("step %g -> %g Mbit/s with a %g Mbit/s UDP stream master -> remote: time until the estimate reads"
-              " below %g Mbit/s" % (args.step_from, args.step_to, args.stream_mbps, args.step_threshold))
+        print("step %g -> %g Mbit/s with a %g Mbit/s UDP stream master -> remote: time until the "
+              "estimate reads below %g Mbit/s"
+              % (args.step_from, args.step_to, args.stream_mbps, args.step_threshold))
         print("  %-10s %-7s %-8s %-10s %-30s %-7s %s"
               % ("condition", "method", "before", "below %g" % args.step_threshold,
                  "after the step: median [min, max]", "final", "no estimate"))
         for s in steps:
             print("  %-10s %-7s %-8s %-10s %-30s %-7s %d of %d samples"
-                  % (s["condition"], s["name"], "%.1f" % s["before"] if s["before"] is not None else "n/a",
-                     "%.1f s" % s["detect"] if s["detect"] is not None else "never",
-                     fmt_range(s["after"]), "%.1f" % s["final"] if s["final"] is not None else "n/a",
-                     s["nan"], s["n_after"]))
+                  % (s["condition"], s["name"], fmt_or("%.1f", s["before"]),
+                     fmt_or("%.1f s", s["detect"], "never"), fmt_range(s["after"]),
+                     fmt_or("%.1f", s["final"]), s["nan"], s["n_after"]))
         print("  estimate after the step, at each change [s after the step, Mbit/s]:")
         for s in steps:
-            print("  %-10s %-7s %s" % (s["condition"], s["name"], ", ".join(s["timeline"]) or "no change"))
+            print("  %-10s %-7s %s"
+                  % (s["condition"], s["name"], ", ".join(s["timeline"]) or "no change"))
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      epilog=__doc__.split("\n\n", 1)[1],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--rates", type=float, nargs="+", default=[27.0, 6.0], help="tbf rates [Mbit/s] (27 6)")
-    parser.add_argument("--seconds", type=float, default=8.0, help="status sampled per case [s] (8)")
-    parser.add_argument("--conditions", nargs="+", choices=["idle", "busy"], default=["idle", "busy"])
+    parser.add_argument("--rates", type=float, nargs="+", default=[27.0, 6.0],
+                        help="tbf rates [Mbit/s] (27 6)")
+    parser.add_argument("--seconds", type=float, default=8.0,
+                        help="status sampled per case [s] (8)")
+    parser.add_argument("--conditions", nargs="+", choices=["idle", "busy"],
+                        default=["idle", "busy"])
     parser.add_argument("--step-in", nargs="*", choices=["idle", "busy"], default=["idle", "busy"],
                         help="conditions in which to run the step case (none: no step)")
     parser.add_argument("--step-from", type=float, default=27.0, help="[Mbit/s] (27)")
     parser.add_argument("--step-to", type=float, default=3.0, help="[Mbit/s] (3)")
-    parser.add_argument("--stream-mbps", type=float, default=6.0, help="UDP stream master -> remote (6)")
-    parser.add_argument("--step-repeat", type=int, default=1, help="step cases per method and condition (1)")
-    parser.add_argument("--step-threshold", type=float, default=8.0, help="'detected' below this [Mbit/s] (8)")
-    parser.add_argument("--step-settle", type=float, default=6.0, help="agent run-in before the reader [s] (6)")
-    parser.add_argument("--step-seconds", type=float, default=12.0, help="observed after the step [s] (12)")
+    parser.add_argument("--stream-mbps", type=float, default=6.0,
+                        help="UDP stream master -> remote (6)")
+    parser.add_argument("--step-repeat", type=int, default=1,
+                        help="step cases per method and condition (1)")
+    parser.add_argument("--step-threshold", type=float, default=8.0,
+                        help="'detected' below this [Mbit/s] (8)")
+    parser.add_argument("--step-settle", type=float, default=6.0,
+                        help="agent run-in before the reader [s] (6)")
+    parser.add_argument("--step-seconds", type=float, default=12.0,
+                        help="observed after the step [s] (12)")
     parser.add_argument("--quota-cores", type=float, default=DEFAULT_QUOTA_CORES,
                         help="busy: CPU quota of the master's group [cores] (0.37)")
-    parser.add_argument("--hogs", type=int, default=3, help="busy: busy loops at nice 5 in the group (3)")
+    parser.add_argument("--hogs", type=int, default=3,
+                        help="busy: busy loops at nice 5 in the group (3)")
     parser.add_argument("--burst", default="32kbit", help="tbf burst (32kbit)")
     args = parser.parse_args()
     args.burst_kbit = int(args.burst.rstrip("kbit"))
@@ -293,8 +321,10 @@ def main():
     signal.signal(signal.SIGTERM, on_term)
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
-    n_cases = (len(args.rates) * len(METHODS) * len([c for c in conditions if c in args.conditions])
-               + len(METHODS) * args.step_repeat * len([c for c in conditions if c in args.step_in]))
+    static_in = [c for c in conditions if c in args.conditions]
+    step_in = [c for c in conditions if c in args.step_in]
+    n_cases = (len(args.rates) * len(METHODS) * len(static_in)
+               + len(METHODS) * args.step_repeat * len(step_in))
     case = 0
     rows, steps, throttling = [], [], {}
     t0 = time.time()
@@ -304,11 +334,13 @@ def main():
         with TwoScaleTestbed(LAYOUT, cgroup_prefix=CGROUP_PREFIX) as bed:
             write_cgroup(bed, "cpu.cfs_quota_us", -1)  # idle: no quota
             bed.start("robot", ["roscore"], env=ros_env(LAYOUT.robot))
-            check = ["/usr/bin/python3", "-c", "import rosgraph, sys; sys.exit(not rosgraph.is_master_online())"]
-            while subprocess.run(namespace_exec(LAYOUT.robot, check), env=ros_env(LAYOUT.robot)).returncode != 0:
+            check = namespace_exec(LAYOUT.robot, [
+                "/usr/bin/python3", "-c",
+                "import rosgraph, sys; sys.exit(not rosgraph.is_master_online())"])
+            while subprocess.run(check, env=ros_env(LAYOUT.robot)).returncode != 0:
                 time.sleep(0.3)
-            bed.start("robot", [agent, "__name:=anyscale_agent_robot", "_scale:=robot", "_is_master:=true",
-                                "_model:=" + MODEL], env=ros_env(LAYOUT.robot))
+            bed.start("robot", [agent, "__name:=anyscale_agent_robot", "_scale:=robot",
+                                "_is_master:=true", "_model:=" + MODEL], env=ros_env(LAYOUT.robot))
             for condition in conditions:
                 if condition == "busy":
                     write_cgroup(bed, "cpu.cfs_period_us", CFS_PERIOD_US)
@@ -330,18 +362,19 @@ def main():
                         log("    %s; estimate %s Mbit/s (%d samples, up %.0f %%)"
                             % (r["method"], fmt_range(r["bw"]), r["n"], r["up"]))
                 if condition in args.step_in:
-                    for method, method_args in [m for _ in range(args.step_repeat) for m in METHODS]:
+                    for method, method_args in METHODS * args.step_repeat:
                         case += 1
-                        log("[%d/%d %3.0f s] %s master, step %g -> %g Mbit/s with a %g Mbit/s stream, %s ..."
-                            % (case, n_cases, time.time() - t0, condition, args.step_from, args.step_to,
-                               args.stream_mbps, method))
+                        log("[%d/%d %3.0f s] %s master, step %g -> %g Mbit/s with a %g Mbit/s "
+                            "stream, %s ..."
+                            % (case, n_cases, time.time() - t0, condition, args.step_from,
+                               args.step_to, args.stream_mbps, method))
                         r = step_case(bed, agent, method_args, args,
                                       "%s_%s_step_%s_%d.log" % (TMP, condition, method, case))
                         r.update(condition=condition, name=method)
                         steps.append(r)
                         log("    %s; below %g Mbit/s after %s"
                             % (r["method"], args.step_threshold,
-                               "%.1f s" % r["detect"] if r["detect"] is not None else "never"))
+                               fmt_or("%.1f s", r["detect"], "never")))
                 if condition == "busy":
                     stat1 = cpu_stat(bed)
                     throttling = {k: stat1[k] - stat0.get(k, 0) for k in stat1}
@@ -358,8 +391,10 @@ def main():
                     os.remove(full)
 
     if os.path.getmtime(agent) != built:
-        print("WARNING: %s was rebuilt during the run; cases before and after used different builds" % agent)
-    print("agent %s, built %s" % (agent, time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(built))))
+        print("WARNING: %s was rebuilt during the run; cases before and after used different "
+              "builds" % agent)
+    print("agent %s, built %s"
+          % (agent, time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(built))))
     report(args, rows, steps, throttling)
     return 0
 

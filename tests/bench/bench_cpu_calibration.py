@@ -19,8 +19,10 @@ this shared VM's speed drifts, and a quota is a share of it). The lines and tabl
 anyscale_testbed/cpu_calibration_report.py.
 
     sudo /usr/bin/python3 tests/bench/bench_cpu_calibration.py
-    sudo /usr/bin/python3 tests/bench/bench_cpu_calibration.py --quotas 0.3,0.35,none --laptop-quotas 0.8
-    sudo /usr/bin/python3 tests/bench/bench_cpu_calibration.py --amcl-particles 3000 --amcl-beams 120 \\
+    sudo /usr/bin/python3 tests/bench/bench_cpu_calibration.py --quotas 0.3,0.35,none \\
+        --laptop-quotas 0.8
+    sudo /usr/bin/python3 tests/bench/bench_cpu_calibration.py --amcl-particles 3000 \\
+        --amcl-beams 120 \\
         --ar-detector-params '{"adaptiveThreshWinSizeMax": 63, "adaptiveThreshWinSizeStep": 2}'
 """
 import argparse
@@ -79,7 +81,8 @@ class Bench:
     def __init__(self, args):
         self.args = args
         self.uri = "http://localhost:%d" % args.port
-        self.env = dict(os.environ, ROS_MASTER_URI=self.uri, PATH="/usr/bin:" + os.environ.get("PATH", ""))
+        self.env = dict(os.environ, ROS_MASTER_URI=self.uri,
+                        PATH="/usr/bin:" + os.environ.get("PATH", ""))
         self.env.pop("ROS_NAMESPACE", None)
         self.procs = []          # Popen of this step (killed after it)
         self.groups = []         # CpuQuota of this step
@@ -151,12 +154,13 @@ class Bench:
         with tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False) as f:
             yaml.safe_dump(params, f)
         try:
-            subprocess.run(["rosparam", "delete", "/amcl"], env=self.env, capture_output=True)
-            subprocess.run(["rosparam", "delete", "/ar_recognition"], env=self.env, capture_output=True)
-            subprocess.run(["rosparam", "load", f.name], env=self.env, check=True, capture_output=True)
+            for ns in ("/amcl", "/ar_recognition"):
+                subprocess.run(["rosparam", "delete", ns], env=self.env, capture_output=True)
+            subprocess.run(["rosparam", "load", f.name], env=self.env, check=True,
+                           capture_output=True)
             if laptop:
-                subprocess.run(["rosparam", "load", world, "/ar_recognition"], env=self.env, check=True,
-                               capture_output=True)
+                subprocess.run(["rosparam", "load", world, "/ar_recognition"], env=self.env,
+                               check=True, capture_output=True)
         finally:
             os.unlink(f.name)
 
@@ -267,11 +271,12 @@ def main():
     ap.add_argument("--laptop-quotas", default="0.6,0.8,1.0",
                     help="laptop group quotas for AMCL + AR alone ('' to skip the laptop case)")
     ap.add_argument("--laptop-robot-quota", default=None,
-                    help="robot group quota during the laptop case (default: robot_cpu_cores of the "
-                         "calibration file, else none)")
+                    help="robot group quota during the laptop case (default: robot_cpu_cores of "
+                         "the calibration file, else none)")
     ap.add_argument("--duration", type=float, default=30.0, help="seconds measured per step")
     ap.add_argument("--warmup", type=float, default=12.0, help="seconds unlimited after start")
-    ap.add_argument("--settle", type=float, default=5.0, help="seconds under the quota before measuring")
+    ap.add_argument("--settle", type=float, default=5.0,
+                    help="seconds under the quota before measuring")
     ap.add_argument("--port", type=int, default=11643)
     ap.add_argument("--world", default="office_floor")
     ap.add_argument("--cgroup-prefix", default="anyscale_cal_")
@@ -293,7 +298,8 @@ def main():
     args.amcl_params = dict(cal.get("amcl", {}))
     args.ar_params = dict(cal.get("ar_recognition", {}))
     if args.amcl_particles:
-        args.amcl_params.update(min_particles=args.amcl_particles, max_particles=args.amcl_particles)
+        args.amcl_params.update(min_particles=args.amcl_particles,
+                                max_particles=args.amcl_particles)
     if args.amcl_beams:
         args.amcl_params["laser_max_beams"] = args.amcl_beams
     if args.ar_detector_params:
@@ -306,7 +312,8 @@ def main():
         lr = float(cal.get("robot_cpu_cores", 0.0) or 0.0)
 
     if os.geteuid() != 0 or not cgroup_available():
-        print("needs root and a writable cgroup v1 CPU hierarchy at /sys/fs/cgroup/cpu", file=sys.stderr)
+        print("needs root and a writable cgroup v1 CPU hierarchy at /sys/fs/cgroup/cpu",
+              file=sys.stderr)
         return 2
 
     bench = Bench(args)
@@ -315,10 +322,12 @@ def main():
     def on_term(*_):
         raise KeyboardInterrupt
     signal.signal(signal.SIGTERM, on_term)
-    signal.signal(signal.SIGINT, signal.default_int_handler)   # also when started with SIGINT ignored
+    # Also when started with SIGINT ignored.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     t_start = time.time()
     try:
-        log("roscore on port %d; amcl %s; ar_recognition %s" % (args.port, args.amcl_params, args.ar_params))
+        log("roscore on port %d; amcl %s; ar_recognition %s"
+            % (args.port, args.amcl_params, args.ar_params))
         bench.start_core()
         for q in robot_qs:
             log("robot case: robot group %s cores (%.0f s warm-up, %.0f s settle, %.0f s measured)"
@@ -335,11 +344,12 @@ def main():
     except KeyboardInterrupt:
         log("interrupted; cleaning up")
     finally:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)      # a second Ctrl-C must not stop the cleanup
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not stop the cleanup
         bench.close()
 
     reference_cpu_ms = cal.get("reference_cpu_ms", "not set")
-    print_report(args, psutil.cpu_count(), time.time() - t_start, reference_cpu_ms, results_r, results_l)
+    print_report(args, psutil.cpu_count(), time.time() - t_start, reference_cpu_ms,
+                 results_r, results_l)
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"robot": results_r, "laptop": results_l}, f, allow_nan=True)

@@ -29,7 +29,7 @@ import statistics
 import sys
 import time
 from dataclasses import dataclass
-from typing import List, Optional
+from typing import List
 
 try:
     from anyscale_testbed.bench_runs import latest_record, run_logged, start_on_the_testbed

@@ -217,8 +217,8 @@ def main(argv=None):
             if w and c:
                 print(f"  {node:<16} planned gap {ratio(c[0], w[0])}, link-loss gap "
                       f"{ratio(c[2], w[2])}, reaction {ratio(c[3], w[3])}")
-    print("\ndecision node CPU: " + ", ".join(f"{v:.2f} % ({k[0]}, {k[1]})"
-                                             for k, v in cpu.items()) + " of one core")
+    print("\ndecision node CPU: "
+          + ", ".join(f"{v:.2f} % ({k[0]}, {k[1]})" for k, v in cpu.items()) + " of one core")
     print("goals: planned-move gap <= one period of freq_min (AMCL 0.5 s, AR 1 s); every gap "
           "within its tolerance (AMCL 2 s, AR 1 s)")
 

@@ -37,9 +37,13 @@ def main():
     m = load_map(MAP)
     rng = np.random.default_rng(0)
     pose = (20.0, 5.9, 0.1)
-    angles = raycast.beam_angles(laser_model.URG_ANGLE_MIN, laser_model.URG_ANGLE_MAX, laser_model.URG_BEAMS)
-    cast = lambda: raycast.cast_rays(m.occupied, m.resolution, m.origin[:2], pose[0], pose[1],  # noqa: E731
-                                     pose[2] + angles, laser_model.URG_RANGE_MAX)
+    angles = raycast.beam_angles(laser_model.URG_ANGLE_MIN, laser_model.URG_ANGLE_MAX,
+                                 laser_model.URG_BEAMS)
+
+    def cast():
+        return raycast.cast_rays(m.occupied, m.resolution, m.origin[:2], pose[0], pose[1],
+                                 pose[2] + angles, laser_model.URG_RANGE_MAX)
+
     ray_ms = per_call_ms(cast, 50)
     print("ray cast, 682 beams to 5.6 m:         %7.2f ms per scan  (%4.1f %% of a core at 10 Hz)"
           % (ray_ms, ray_ms * 10 / 10.0))
@@ -75,18 +79,20 @@ def main():
     t = time.perf_counter()
     graph = costmap.grid_graph(coarse, 0.1, 3.0)
     graph_ms = (time.perf_counter() - t) * 1000
-    nf_ms = per_call_ms(lambda: costmap.NavigationFunction(coarse, 0.1, (0, 0), graph, (34.65, 20.275)), 5)
-    nf = costmap.NavigationFunction(coarse, 0.1, (0, 0), graph, (34.65, 20.275))
+    goal = (34.65, 20.275)
+    nf_ms = per_call_ms(lambda: costmap.NavigationFunction(coarse, 0.1, (0, 0), graph, goal), 5)
+    nf = costmap.NavigationFunction(coarse, 0.1, (0, 0), graph, goal)
     path_ms = per_call_ms(lambda: nf.path_from(pose[:2]), 20)
     print("planner graph build (once per map):    %7.1f ms, %d nodes" % (graph_ms, graph.shape[0]))
     print("Dijkstra from a goal (once per goal):  %7.1f ms" % nf_ms)
     print("path extraction (every control cycle): %7.2f ms" % path_ms)
     path = nf.path_from(pose[:2])
-    pts = np.column_stack([pose[0] + scan[np.isfinite(scan)] * np.cos(angles[np.isfinite(scan)]),
-                           pose[1] + scan[np.isfinite(scan)] * np.sin(angles[np.isfinite(scan)])])[::2]
+    hit = np.isfinite(scan)
+    pts = np.column_stack([pose[0] + scan[hit] * np.cos(angles[hit]),
+                           pose[1] + scan[hit] * np.sin(angles[hit])])[::2]
     cfg = DWAConfig()
-    dwa_ms = per_call_ms(lambda: choose_velocity(pose, (0.3, 0.0), path, (cost, m.resolution, (0, 0)),
-                                                 pts, cfg), 50)
+    dwa_ms = per_call_ms(lambda: choose_velocity(pose, (0.3, 0.0), path,
+                                                 (cost, m.resolution, (0, 0)), pts, cfg), 50)
     print("DWA, %d x %d samples, %d laser points:  %7.2f ms  (%4.1f %% of a core at 10 Hz)"
           % (cfg.vx_samples, cfg.vth_samples, len(pts), dwa_ms, dwa_ms))
 

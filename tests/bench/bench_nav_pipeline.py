@@ -4,7 +4,8 @@ robot drives the office floor, each at its optimal rate, and the whole pipeline'
 this machine, with the measured rates of Table I's connections, side by side in one run.
 
 Starts its own master on a private port (default 11533) and stops it afterwards.
-    /usr/bin/python3 tests/bench/bench_nav_pipeline.py [--seconds 30] [--port 11533] [--world office_floor]
+    /usr/bin/python3 tests/bench/bench_nav_pipeline.py [--seconds 30] [--port 11533] \\
+        [--world office_floor]
 """
 import argparse
 import os
@@ -16,10 +17,10 @@ import xmlrpc.client
 
 import psutil
 
-NODES = ["world_sim", "laser", "odometer", "camera", "base_driver", "user", "map_server", "odometry",
-         "amcl", "ekf", "navigation", "ar_recognition"]
-TOPICS = ["/scan", "/joint_states", "/camera/image_raw", "/odom", "/amcl_pose", "/odometry/filtered",
-          "/ar_markers", "/cmd_vel"]
+NODES = ["world_sim", "laser", "odometer", "camera", "base_driver", "user", "map_server",
+         "odometry", "amcl", "ekf", "navigation", "ar_recognition"]
+TOPICS = ["/scan", "/joint_states", "/camera/image_raw", "/odom", "/amcl_pose",
+          "/odometry/filtered", "/ar_markers", "/cmd_vel"]
 
 
 def node_pid(master, name):
@@ -49,7 +50,8 @@ def main():
     ap.add_argument("--warmup", type=float, default=15.0)
     ap.add_argument("--port", type=int, default=11533)
     ap.add_argument("--world", default="office_floor")
-    ap.add_argument("--amcl-rate", default="5.0", help="AMCL's update rate cap (robot.launch amcl_rate)")
+    ap.add_argument("--amcl-rate", default="5.0",
+                    help="AMCL's update rate cap (robot.launch amcl_rate)")
     ap.add_argument("--attach", action="store_true",
                     help="measure the demo already running under $ROS_MASTER_URI instead")
     args = ap.parse_args()
@@ -59,9 +61,9 @@ def main():
     else:
         env = dict(os.environ, ROS_MASTER_URI="http://localhost:%d" % args.port)
         os.environ["ROS_MASTER_URI"] = env["ROS_MASTER_URI"]
-        launch = subprocess.Popen(["roslaunch", "-p", str(args.port), "anyscale_nav_demo", "robot.launch",
-                                   "anyscale:=false", "world:=" + args.world, "record:=false",
-                                   "amcl_rate:=" + args.amcl_rate],
+        launch = subprocess.Popen(["roslaunch", "-p", str(args.port), "anyscale_nav_demo",
+                                   "robot.launch", "anyscale:=false", "world:=" + args.world,
+                                   "record:=false", "amcl_rate:=" + args.amcl_rate],
                                   env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                   start_new_session=True)
     try:
@@ -88,15 +90,16 @@ def main():
             except subprocess.TimeoutExpired:
                 os.killpg(launch.pid, signal.SIGKILL)
     cores = psutil.cpu_count()
+    where = (" (attached)" if args.attach
+             else " on %s, AMCL cap %s Hz" % (args.world, args.amcl_rate))
     print("Navigation demo%s, %d cores, %.0f s of driving%s"
-          % (" (attached)" if args.attach else " on %s, AMCL cap %s Hz" % (args.world, args.amcl_rate),
-             cores, elapsed, "" if args.attach else " after %.0f s warm-up" % args.warmup))
+          % (where, cores, elapsed, "" if args.attach else " after %.0f s warm-up" % args.warmup))
     print("%-16s %12s %14s %8s" % ("node", "% of a core", "% of machine", "RSS MB"))
     app = 0.0
     for n in NODES:
         c = cpu.get(n, float("nan"))
-        print("%-16s %12.1f %14.1f %8.0f%s" % (n, c, c / cores, rss.get(n, float("nan")),
-                                               "   (simulator: not an app node)" if n == "world_sim" else ""))
+        note = "   (simulator: not an app node)" if n == "world_sim" else ""
+        print("%-16s %12.1f %14.1f %8.0f%s" % (n, c, c / cores, rss.get(n, float("nan")), note))
         app += c if n != "world_sim" and c == c else 0.0
     sim = cpu.get("world_sim", 0.0)
     print("%-16s %12.1f %14.1f" % ("application", app, app / cores))

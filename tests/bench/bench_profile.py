@@ -160,8 +160,8 @@ def main(argv=None) -> int:
         cal_cpu, cal_hz = calibrated.get((m["node"], m["scale"]), (nan, nan))
         cal_ms = per_message_ms(cal_cpu, cal_hz)
         busy = m.get("scale_busy_percent")
-        busy = "-" if busy is None else f"{busy:.0f} %" + (", its limit" if m["saturated"]
-                                                          else "")
+        limit = ", its limit" if m["saturated"] else ""
+        busy = "-" if busy is None else f"{busy:.0f} %{limit}"
         speed = host_speed_factor(calibrated_ms.get(m["scale"], nan), profile_ms)
         print(f"| {m['node']} | {m['scale']} | {m['cpu_usage']:g} % ({m['capacity_cores']:g} "
               f"cores), {busy} | {cpu:.1f} ({m['cpu_sd']:.1f}) | {topic} {hz:.2f} Hz | "

@@ -38,8 +38,8 @@ try:
     from anyscale_testbed.quota_calibration import CalibrationError
     from anyscale_testbed.quota_for_the_day import (QuotaForTheDay, calibration_markdown,
                                                     normalise_cpu_argv, parse_robot_cpu)
-    from anyscale_testbed.tolerance_report import (format_markdown, format_table, row_cells, run_row,
-                                                   topics_of, write_csv)
+    from anyscale_testbed.tolerance_report import (format_markdown, format_table, row_cells,
+                                                   run_row, topics_of, write_csv)
 except ImportError as e:
     sys.exit(f"{os.path.basename(__file__)}: {e}: source this workspace first "
              "(source devel/setup.bash; scripts/setup.sh installs and builds it)")
@@ -51,6 +51,7 @@ RUN_TESTBED = os.path.join(ROOT, "scripts", "run_testbed.py")
 # AMCL's scan and the odometry chain it waits on (joint states -> odometry -> EKF): the silences
 # at home that the bench could not explain came with a scan dropped after waiting for odometry.
 DEFAULT_INPUTS = "/scan,/joint_states,/odom,/odometry/filtered"
+
 
 def parse_args(argv):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],

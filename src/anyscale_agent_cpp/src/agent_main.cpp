@@ -1,7 +1,9 @@
 // Entry point of the anyscale_agent node.
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 
+#include "anyscale_agent_cpp/agent_config.h"
 #include "anyscale_agent_cpp/agent_node.h"
 
 namespace
@@ -11,6 +13,18 @@ void requestShutdown(int)
 {
   ros::requestShutdown();
 }
+
+// roslaunch's order: ROS_LOG_DIR, then ROS_HOME/log, then ~/.ros/log.
+std::string logBase()
+{
+  if (const char* d = std::getenv("ROS_LOG_DIR"))
+    return d;
+  if (const char* h = std::getenv("ROS_HOME"))
+    return std::string(h) + "/log";
+  if (const char* home = std::getenv("HOME"))
+    return std::string(home) + "/.ros/log";
+  return "/tmp";
+}
 }  // namespace
 
 int main(int argc, char** argv)
@@ -19,6 +33,8 @@ int main(int argc, char** argv)
   // buffered, the lines reached the log only at exit, and not at all when the agent was
   // killed (an evaluation run's laptop agent logged nothing after a long outage).
   std::setvbuf(stdout, nullptr, _IOLBF, 0);
+  // Before ros::init, which moves the `name:=value` arguments out of argv.
+  const auto private_args = anyscale_agent::privateArguments(argc, argv);
   ros::init(argc, argv, "anyscale_agent", ros::init_options::NoSigintHandler);
   std::signal(SIGINT, requestShutdown);
   std::signal(SIGTERM, requestShutdown);
@@ -27,7 +43,17 @@ int main(int argc, char** argv)
   ros::NodeHandle nh;
   try
   {
-    anyscale_agent::AgentNode agent{ nh, ros::NodeHandle("~") };
+    const auto config =
+        anyscale_agent::agentConfig(private_args, ros::this_node::getName(), logBase());
+    // roscpp has put the command line's `_name:=` on the parameter server too; one there that the
+    // command line did not give was set by a launch file's <param>, or by anyone on the graph.
+    for (const char* key : anyscale_agent::kCommandLineSettings)
+      if (!private_args.count(key) && ros::param::has(std::string("~") + key))
+        ROS_WARN(
+            "parameter ~%s is not read (anyone on the graph may set it): give _%s:= on the agent's "
+            "command line (agent.launch's args)",
+            key, key);
+    anyscale_agent::AgentNode agent{nh, ros::NodeHandle("~"), config};
     agent.spin();
   }
   catch (const std::exception& e)

@@ -6,14 +6,15 @@
 #include <ros/package.h>
 #include <sys/resource.h>
 #include <unistd.h>
+#include <boost/make_shared.hpp>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
 
 #include "anyscale_agent_cpp/uplink_carrier.h"
+#include "anyscale_agent_cpp/wire_checked.h"
 
 namespace anyscale_agent
 {
@@ -37,12 +38,12 @@ double positive(const ros::NodeHandle& pnh, const std::string& name, double fall
 {
   const double v = param(pnh, name, fallback);
   if (!(v > 0.0) || !std::isfinite(v))
-    throw std::runtime_error("parameter ~" + name + " must be a positive number of seconds/Hz, got " +
-                             std::to_string(v));
+    throw std::runtime_error("parameter ~" + name +
+                             " must be a positive number of seconds/Hz, got " + std::to_string(v));
   return v;
 }
 
-SupervisorOptions supervisorOptions(const ros::NodeHandle& pnh)
+SupervisorOptions supervisorOptions(const ros::NodeHandle& pnh, const AgentConfig& config)
 {
   SupervisorOptions o;
   o.sigint_timeout_s = positive(pnh, "sigint_timeout_s", o.sigint_timeout_s);
@@ -51,46 +52,39 @@ SupervisorOptions supervisorOptions(const ros::NodeHandle& pnh)
   // must not take them down, as rosmon or systemd would not; its successor adopts them. On
   // any other scale a node must not outlive the agent that enforces its lease, or a robot
   // that already started its own instance would see two.
-  if (param(pnh, "nodes_outlive_agent", param(pnh, "is_master", false)))
+  if (config.nodes_outlive_agent)
     o.parent_death_signal = 0;
   // Read before the agent raises its own priority (AgentNode's constructor, ~control_nice).
   o.child_nice = ::getpriority(PRIO_PROCESS, 0);
   return o;
 }
 
-std::string defaultLogDir(const std::string& scale)
-{
-  // roslaunch's order: ROS_LOG_DIR, then ROS_HOME/log, then ~/.ros/log.
-  std::string base;
-  if (const char* d = std::getenv("ROS_LOG_DIR"))
-    base = d;
-  else if (const char* h = std::getenv("ROS_HOME"))
-    base = std::string(h) + "/log";
-  else if (const char* home = std::getenv("HOME"))
-    base = std::string(home) + "/.ros/log";
-  else
-    base = "/tmp";
-  return base + "/anyscale/" + scale;
-}
-
 }  // namespace
 
-AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
-  : nh_(nh), pnh_(pnh), supervisor_(supervisorOptions(pnh))
+template <class Req, class Res>
+ros::ServiceServer AgentNode::advertise(const std::string& name,
+                                        bool (AgentNode::*callback)(ros::ServiceEvent<Req, Res>&),
+                                        const WireLayout& layout)
+{
+  ros::AdvertiseServiceOptions ops;
+  ops.initBySpecType<ros::ServiceEvent<Req, Res>>(
+      name, boost::bind(callback, this, boost::placeholders::_1));
+  ops.helper = boost::make_shared<WireCheckedService>(ops.helper, layout, name);
+  return nh_.advertiseService(ops);
+}
+
+AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh, const AgentConfig& config)
+  : nh_(nh), pnh_(pnh), supervisor_(supervisorOptions(pnh, config))
 {
   const std::string node_name = ros::this_node::getName();
-  const std::string prefix = "/anyscale_agent_";
-  scale_ = param<std::string>(pnh_, "scale", node_name.rfind(prefix, 0) == 0 ? node_name.substr(prefix.size()) : "");
-  if (!isValidPackageName(scale_))
-    throw std::runtime_error("parameter ~scale must be a scale name of the model (letters, digits, '_'), got '" +
-                             scale_ + "'");
-  if (node_name != prefix + scale_)
-    ROS_WARN("agent node is named %s; the convention is %s%s", node_name.c_str(), prefix.c_str(), scale_.c_str());
-  is_master_ = param(pnh_, "is_master", false);
-  if (!pnh_.getParam("model", model_path_))
-    throw std::runtime_error("parameter ~model (path of the system model YAML) is required");
+  scale_ = config.scale;
+  if (node_name != "/anyscale_agent_" + scale_)
+    ROS_WARN("agent node is named %s; the convention is /anyscale_agent_%s", node_name.c_str(),
+             scale_.c_str());
+  is_master_ = config.is_master;
+  model_path_ = config.model_path;
   model_ = NodeModel::load(model_path_);  // ModelError is a runtime_error naming file and key
-  log_dir_ = param<std::string>(pnh_, "log_dir", defaultLogDir(scale_));
+  log_dir_ = config.log_dir;
   std::error_code ec;
   std::filesystem::create_directories(log_dir_, ec);
   if (ec)
@@ -101,27 +95,31 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   standby_delay_s_ = positive(pnh_, "standby_delay_s", standby_delay_s_);
   const int start_boost_nice = param(pnh_, "start_boost_nice", 0);
   if (start_boost_nice < -20 || start_boost_nice > 0)
-    throw std::runtime_error("parameter ~start_boost_nice must be a nice value from -20 to 0 (0: no boost), got " +
-                             std::to_string(start_boost_nice));
+    throw std::runtime_error(
+        "parameter ~start_boost_nice must be a nice value from -20 to 0 (0: no boost), got " +
+        std::to_string(start_boost_nice));
   const double late_boost_fraction = param(pnh_, "late_boost_fraction", 0.5);
   if (!(late_boost_fraction >= 0.0 && late_boost_fraction <= 1.0))
-    throw std::runtime_error("parameter ~late_boost_fraction must be a fraction of a node's output tolerance from 0 "
-                             "to 1 (0: no late boost), got " + std::to_string(late_boost_fraction));
-  boosts_ = OutputBoosts(start_boost_nice, positive(pnh_, "start_boost_s", 3.0), late_boost_fraction);
+    throw std::runtime_error(
+        "parameter ~late_boost_fraction must be a fraction of a node's output tolerance from 0 "
+        "to 1 (0: no late boost), got " +
+        std::to_string(late_boost_fraction));
+  boosts_ =
+      OutputBoosts(start_boost_nice, positive(pnh_, "start_boost_s", 3.0), late_boost_fraction);
   // Before any start: the nodes a killed predecessor left running are this agent's again.
-  adoptNodes(param<std::string>(pnh_, "state_file", log_dir_ + "/running_nodes.yaml"));
+  adoptNodes(config.state_file);
+  openLedger(config);
   raiseControlPriority(param(pnh_, "control_nice", 0));
 
-  topics_ = std::make_unique<TopicWatcher>(nh_, positive(pnh_, "rate_window_s", 2.0),
-                                           std::max(1, param(pnh_, "topic_queue_size", 50)),
-                                           param(pnh_, "watch_all", false),
-                                           // Off by default: see the README's ~count_by_bus_stats
-                                           // (the decision node's bandwidth rule still relies on
-                                           // the second copy to see a link AR's stream saturates).
-                                           param(pnh_, "count_by_bus_stats", false),
-                                           positive(pnh_, "bus_stats_period_s", 0.25),
-                                           positive(pnh_, "bus_stats_timeout_s", 0.25),
-                                           [this](const std::string& publisher) { outputSeen(publisher); });
+  topics_ = std::make_unique<TopicWatcher>(
+      nh_, positive(pnh_, "rate_window_s", 2.0), std::max(1, param(pnh_, "topic_queue_size", 50)),
+      param(pnh_, "watch_all", false),
+      // Off by default: see the README's ~count_by_bus_stats
+      // (the decision node's bandwidth rule still relies on
+      // the second copy to see a link AR's stream saturates).
+      param(pnh_, "count_by_bus_stats", false), positive(pnh_, "bus_stats_period_s", 0.25),
+      positive(pnh_, "bus_stats_timeout_s", 0.25),
+      [this](const std::string& publisher) { outputSeen(publisher); });
   std::string error;
   if (!topics_->setWatched(param(pnh_, "watched_topics", std::vector<std::string>{}), {}, &error))
     throw std::runtime_error("parameter ~watched_topics: " + error);
@@ -133,7 +131,8 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   link.bulk_period_s = positive(pnh_, "link_bulk_period_s", link.bulk_period_s);
   link.icmp = param(pnh_, "link_bandwidth_by_icmp", link.icmp);
   if (!is_master_)
-    master_calls_ = std::make_unique<MasterCallWatchdog>(ros::master::getHost(), int(ros::master::getPort()));
+    master_calls_ =
+        std::make_unique<MasterCallWatchdog>(ros::master::getHost(), int(ros::master::getPort()));
   link_ = std::make_unique<LinkMonitor>(
       nh_, scale_, is_master_, param<std::string>(pnh_, "master_scale", ""), link,
       [this](double now, const std::function<bool()>& may_call_master) {
@@ -144,19 +143,22 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
 
   status_pub_ = nh_.advertise<anyscale_msgs::ScaleStatus>("/anyscale/status", 10);
   const std::string ns = "/anyscale/" + scale_ + "/";
-  services_.push_back(nh_.advertiseService(ns + "start_node", &AgentNode::onStart, this));
-  services_.push_back(nh_.advertiseService(ns + "stop_node", &AgentNode::onStop, this));
-  services_.push_back(nh_.advertiseService(ns + "renew_leases", &AgentNode::onRenew, this));
-  services_.push_back(nh_.advertiseService(ns + "list_nodes", &AgentNode::onList, this));
-  services_.push_back(nh_.advertiseService(ns + "set_watched_topics", &AgentNode::onSetWatched, this));
+  services_.push_back(advertise(ns + "start_node", &AgentNode::onStart, kStartNodeWire));
+  services_.push_back(advertise(ns + "stop_node", &AgentNode::onStop, kStopNodeWire));
+  services_.push_back(advertise(ns + "renew_leases", &AgentNode::onRenew, kRenewLeasesWire));
+  services_.push_back(advertise(ns + "list_nodes", &AgentNode::onList, kListNodesWire));
+  services_.push_back(
+      advertise(ns + "set_watched_topics", &AgentNode::onSetWatched, kSetWatchedTopicsWire));
 
-  sample_timer_ = nh_.createSteadyTimer(ros::WallDuration(sample_period_s_), &AgentNode::onSample, this);
+  sample_timer_ =
+      nh_.createSteadyTimer(ros::WallDuration(sample_period_s_), &AgentNode::onSample, this);
   ros::NodeHandle supervise_nh(nh_), graph_nh(nh_);
   supervise_nh.setCallbackQueue(&supervise_queue_);
   graph_nh.setCallbackQueue(&graph_queue_);
-  supervise_timer_ = supervise_nh.createSteadyTimer(ros::WallDuration(0.1), &AgentNode::onSupervise, this);
-  graph_timer_ = graph_nh.createSteadyTimer(ros::WallDuration(positive(pnh_, "graph_period_s", 1.0)),
-                                            &AgentNode::onGraph, this);
+  supervise_timer_ =
+      supervise_nh.createSteadyTimer(ros::WallDuration(0.1), &AgentNode::onSupervise, this);
+  graph_timer_ = graph_nh.createSteadyTimer(
+      ros::WallDuration(positive(pnh_, "graph_period_s", 1.0)), &AgentNode::onGraph, this);
   uplink_interface_ = param<std::string>(pnh_, "uplink_interface", "");
   if (!uplink_interface_.empty())
   {
@@ -170,10 +172,12 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
                                "' in this network namespace (it has: " + have + ")");
     }
     uplink_up_ = carrier == Carrier::Up;
-    ROS_INFO("watching the carrier of uplink %s (now %s)", uplink_interface_.c_str(), toString(carrier));
+    ROS_INFO("watching the carrier of uplink %s (now %s)", uplink_interface_.c_str(),
+             toString(carrier));
     // On the supervision thread: a file read every period, never blocked by a master query.
     uplink_timer_ = supervise_nh.createSteadyTimer(
-        ros::WallDuration(positive(pnh_, "uplink_poll_period_s", 0.05)), &AgentNode::onUplink, this);
+        ros::WallDuration(positive(pnh_, "uplink_poll_period_s", 0.05)), &AgentNode::onUplink,
+        this);
   }
 
   diagnostics_.setHardwareID(scale_);
@@ -183,9 +187,11 @@ AgentNode::AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   diagnostics_.add("topics", this, &AgentNode::diagnoseTopics);
 
   sampler_.sample(steadyNow(), {});
-  ROS_INFO("anyscale agent of scale '%s'%s: %zu nodes declared in %s, logs in %s; nodes %s", scale_.c_str(),
-           is_master_ ? " (master)" : "", model_.names().size(), model_path_.c_str(), log_dir_.c_str(),
-           supervisor_.options().parent_death_signal ? "die with this agent" : "outlive this agent if it is killed");
+  ROS_INFO("anyscale agent of scale '%s'%s: %zu nodes declared in %s, logs in %s; nodes %s",
+           scale_.c_str(), is_master_ ? " (master)" : "", model_.names().size(),
+           model_path_.c_str(), log_dir_.c_str(),
+           supervisor_.options().parent_death_signal ? "die with this agent"
+                                                     : "outlive this agent if it is killed");
 }
 
 AgentNode::~AgentNode()
@@ -195,6 +201,7 @@ AgentNode::~AgentNode()
   graph_timer_.stop();
   uplink_timer_.stop();
   supervisor_.stopAll();
+  syncLedger();
 }
 
 void AgentNode::spin()
@@ -208,6 +215,7 @@ void AgentNode::spin()
   ros::waitForShutdown();
   ROS_INFO("anyscale agent of scale '%s' stopping the nodes it started", scale_.c_str());
   supervisor_.stopAll();
+  syncLedger();  // their capacity is free at once, not when their leases end
 }
 
 double AgentNode::steadyNow()
@@ -246,6 +254,7 @@ void AgentNode::onSupervise(const ros::SteadyTimerEvent&)
       ROS_WARN("lease of %s expired: stopping it", name.c_str());
   for (const auto& note : supervisor_.takeStateFileNotes())
     ROS_WARN("%s", note.c_str());
+  syncLedgerOnChange();
   // Here, not with the master queries: a standby is most needed right after a partition, when
   // those queries hang on the unreachable master.
   keepStandbysReady();
@@ -260,7 +269,7 @@ std::map<std::string, TopicWatcher::RunningNode> AgentNode::runningNodes() const
       std::string instance = rosName(p.name);
       if (instance.empty() || instance[0] != '/')
         instance.insert(0, "/");
-      out[p.name] = { instance, p.pid, p.state == ProcState::Paused };
+      out[p.name] = {instance, p.pid, p.state == ProcState::Paused};
     }
   return out;
 }
@@ -274,8 +283,10 @@ void AgentNode::onGraph(const ros::SteadyTimerEvent&)
   // logged so that a slow master shows in the agent's log.
   const double took = steadyNow() - began;
   if (took >= kSlowGraphPassS)
-    ROS_WARN("the master's graph took %.1f s to read (registrations, subscribers on this scale); "
-             "the inputs of the nodes run here are counted without it", took);
+    ROS_WARN(
+        "the master's graph took %.1f s to read (registrations, subscribers on this scale); "
+        "the inputs of the nodes run here are counted without it",
+        took);
 }
 
 void AgentNode::onGraphQueries()
@@ -290,7 +301,8 @@ void AgentNode::onGraphQueries()
     // The registered process may be a child of the one we started (a wrapper script), so any
     // member of its process group counts.
     const auto reg = graph_.lookup(rosName(p.name));
-    if (reg && reg->host == graph_.host() && reg->pid > 0 && (reg->pid == p.pid || ::getpgid(reg->pid) == p.pid))
+    if (reg && reg->host == graph_.host() && reg->pid > 0 &&
+        (reg->pid == p.pid || ::getpgid(reg->pid) == p.pid))
       supervisor_.markRunning(p.name);
   }
   for (const auto& name : supervisor_.takeUnrequestedExits())
@@ -301,26 +313,29 @@ void AgentNode::onGraphQueries()
     if (info && info->pid != 0)
     {
       // Started again (the decision node restarts a node at once) before this check ran.
-      ROS_WARN("%s exited by itself and was started again (pid %d); log: %s", name.c_str(), info->pid,
-               info->log_file.c_str());
+      ROS_WARN("%s exited by itself and was started again (pid %d); log: %s", name.c_str(),
+               info->pid, info->log_file.c_str());
       continue;
     }
     const auto reg = graph_.lookup(rosName(name));
     if (info && reg && reg->pid != 0)
     {
       supervisor_.setFinalState(name, ProcState::Replaced);
-      ROS_WARN("%s exited: its name was taken by a node on %s (pid %d)", name.c_str(), reg->host.c_str(), reg->pid);
+      ROS_WARN("%s exited: its name was taken by a node on %s (pid %d)", name.c_str(),
+               reg->host.c_str(), reg->pid);
     }
     else if (info && info->adopted && info->exit_code == -1 && info->exit_signal == 0)
     {
-      ROS_WARN("%s exited by itself (exit status unknown: it was started by the agent before this one, so it is "
-               "not this agent's child); log: %s",
-               name.c_str(), info->log_file.c_str());
+      ROS_WARN(
+          "%s exited by itself (exit status unknown: it was started by the agent before this one, "
+          "so it is "
+          "not this agent's child); log: %s",
+          name.c_str(), info->log_file.c_str());
     }
     else if (info)
     {
-      ROS_WARN("%s exited by itself (code %d, signal %d); log: %s", name.c_str(), info->exit_code, info->exit_signal,
-               info->log_file.c_str());
+      ROS_WARN("%s exited by itself (code %d, signal %d); log: %s", name.c_str(), info->exit_code,
+               info->exit_signal, info->log_file.c_str());
     }
     std::lock_guard<std::mutex> lock(leases_mutex_);
     leases_.remove(name);

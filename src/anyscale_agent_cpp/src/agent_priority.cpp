@@ -12,8 +12,10 @@ namespace anyscale_agent
 void AgentNode::raiseControlPriority(int control_nice)
 {
   if (control_nice < -20 || control_nice > 0)
-    throw std::runtime_error("parameter ~control_nice must be a nice value from -20 to 0 (0: the priority it was "
-                             "started at), got " + std::to_string(control_nice));
+    throw std::runtime_error(
+        "parameter ~control_nice must be a nice value from -20 to 0 (0: the priority it was "
+        "started at), got " +
+        std::to_string(control_nice));
   // On a robot held at its CPU quota, a stop, a resume or a status answered late is a node's
   // output silent for longer: the agent's own work is small, so a raised priority costs the
   // nodes little and answers its calls ahead of them. Its nodes start at the priority it had
@@ -30,8 +32,9 @@ void AgentNode::setStartPriority(const NodeDecl& decl, const std::string& name, 
   std::string error;
   if (start_nice != 0 && !setProcessNice(pid, start_nice, &error))
   {
-    ROS_WARN_ONCE("%s: cannot run it at nice %d (%s)%s; nodes run at the agent's priority", name.c_str(),
-                  start_nice, error.c_str(), start_nice < 0 ? ": raising a priority needs CAP_SYS_NICE" : "");
+    ROS_WARN_ONCE("%s: cannot run it at nice %d (%s)%s; nodes run at the agent's priority",
+                  name.c_str(), start_nice, error.c_str(),
+                  start_nice < 0 ? ": raising a priority needs CAP_SYS_NICE" : "");
     return;
   }
   // Its messages carry the name it runs under here: the boost ends at the first one this agent
@@ -77,7 +80,8 @@ void AgentNode::updateBoosts()
     changes = boosts_.update(steadyNow(), [this](const std::string& name, int pid) {
       const auto info = supervisor_.info(name);
       // A paused node is silent by design; one that starts is not yet registered (Starting).
-      return info && info->pid == pid && (info->state == ProcState::Running || info->state == ProcState::Starting);
+      return info && info->pid == pid &&
+             (info->state == ProcState::Running || info->state == ProcState::Starting);
     });
   }
   for (const auto& change : changes)
@@ -91,7 +95,8 @@ void AgentNode::applyBoost(const OutputBoosts::Change& change)
     return;  // ended or started again meanwhile: its new process has its own priority
   std::string error;
   if (!setProcessNice(change.pid, change.nice, &error))
-    ROS_WARN("%s: could not set its nice to %d: %s", change.name.c_str(), change.nice, error.c_str());
+    ROS_WARN("%s: could not set its nice to %d: %s", change.name.c_str(), change.nice,
+             error.c_str());
   else
     ROS_DEBUG("%s (pid %d) now at nice %d", change.name.c_str(), change.pid, change.nice);
 }

@@ -17,7 +17,8 @@ void logRefusal(const char* service, Event& event)
 {
   const std::string& message = event.getResponse().message;
   if (message.rfind("refused", 0) == 0)
-    ROS_WARN("%s from caller %s: %s", service, quoted(event.getCallerName()).c_str(), message.c_str());
+    ROS_WARN("%s from caller %s: %s", service, quoted(event.getCallerName()).c_str(),
+             message.c_str());
 }
 }  // namespace
 
@@ -42,10 +43,10 @@ bool AgentNode::onRenew(Event<anyscale_msgs::RenewLeases>& event)
   return true;
 }
 
-bool AgentNode::onList(anyscale_msgs::ListNodes::Request&, anyscale_msgs::ListNodes::Response& res)
+bool AgentNode::onList(Event<anyscale_msgs::ListNodes>& event)
 {
   std::lock_guard<std::mutex> lock(sample_mutex_);
-  res.nodes = nodeProcesses();
+  event.getResponse().nodes = nodeProcesses();
   return true;
 }
 
@@ -62,13 +63,25 @@ void AgentNode::setWatched(const anyscale_msgs::SetWatchedTopics::Request& req,
   res.success = false;
   if (req.topics.size() > kMaxWatchedTopics || req.subscribers.size() > kMaxWatchedTopics)
   {
-    res.message = "refused: " + std::to_string(std::max(req.topics.size(), req.subscribers.size())) +
-                  " topics or subscribers, at most " + std::to_string(kMaxWatchedTopics) + " may be watched";
+    res.message =
+        "refused: " + std::to_string(std::max(req.topics.size(), req.subscribers.size())) +
+        " topics or subscribers, at most " + std::to_string(kMaxWatchedTopics) + " may be watched";
     return;
   }
+  // A subscriber named here has its topic counted on this scale (pulled across the link if it
+  // is published elsewhere): only the model's subscribers, for their own topics.
+  for (std::size_t i = 0; i < req.subscribers.size() && i < req.topics.size(); ++i)
+    if (!req.subscribers[i].empty() && !model_.subscribes(req.subscribers[i], req.topics[i]))
+    {
+      res.message = "refused: subscriber " + quoted(req.subscribers[i]) + " of " +
+                    quoted(req.topics[i]) +
+                    ": no connection of the model has that node subscribe to that topic";
+      return;
+    }
   std::string error;
   res.success = topics_->setWatched(req.topics, req.subscribers, &error);
-  res.message = res.success ? "watching " + std::to_string(req.topics.size()) + " topics where a local node subscribes"
+  res.message = res.success ? "watching " + std::to_string(req.topics.size()) +
+                                  " topics where a local node subscribes"
                             : "refused: " + error;
 }
 

@@ -6,24 +6,14 @@
 #include <cmath>
 #include <csignal>
 #include <cstdlib>
-#include <fstream>
-#include <limits>
 
 #include "anyscale_agent_cpp/param_loader.h"
-#include "anyscale_agent_cpp/process_priority.h"
 #include "anyscale_agent_cpp/request_check.h"
 
 namespace anyscale_agent
 {
 namespace
 {
-constexpr double kStandbyRetryS = 30.0;
-
-std::string qualified(const std::string& name)
-{
-  return !name.empty() && name[0] == '/' ? name : "/" + name;
-}
-
 std::string join(const std::vector<std::string>& v)
 {
   std::string out;
@@ -41,38 +31,26 @@ std::string joinQuoted(const std::vector<std::string>& v)
   return v.size() > 10 ? out + " and " + std::to_string(v.size() - 10) + " more" : out;
 }
 
-bool isPythonScript(const std::string& path)
-{
-  std::ifstream f(path);
-  std::string first_line;
-  std::getline(f, first_line);
-  return first_line.rfind("#!", 0) == 0 && first_line.find("python") != std::string::npos;
-}
-
 bool isWaiting(const std::optional<ProcessInfo>& standby)
 {
   return standby && standby->pid != 0 && standby->state == ProcState::Standby;
 }
-
-// The node has an instance here that is not on its way out.
-bool runsHere(const std::optional<ProcessInfo>& node)
-{
-  return node && node->pid != 0 && (node->state == ProcState::Starting || node->state == ProcState::Running);
-}
 }  // namespace
 
-void AgentNode::startNode(const anyscale_msgs::StartNode::Request& req, anyscale_msgs::StartNode::Response& res)
+void AgentNode::startNode(const anyscale_msgs::StartNode::Request& req,
+                          anyscale_msgs::StartNode::Response& res)
 {
   res.success = false;
   res.pid = 0;
   // Everything is checked, and every path resolved, before anything is written or forked.
-  const NodeDecl* decl = isValidNodeName(req.node) || (req.node.size() > 1 && isValidNodeName(req.node.substr(1)))
-                             ? model_.find(req.node)
-                             : nullptr;
+  const NodeDecl* decl =
+      isValidNodeName(req.node) || (req.node.size() > 1 && isValidNodeName(req.node.substr(1)))
+          ? model_.find(req.node)
+          : nullptr;
   if (!decl)
   {
-    res.message = "refused: node " + quoted(req.node) + " is not declared in the model " + model_path_ +
-                  " (declared: " + join(model_.names()) + ")";
+    res.message = "refused: node " + quoted(req.node) + " is not declared in the model " +
+                  model_path_ + " (declared: " + join(model_.names()) + ")";
     return;
   }
   if (const std::string why = checkSeconds("lease_s", req.lease_s, true, kMaxLeaseS); !why.empty())
@@ -80,6 +58,22 @@ void AgentNode::startNode(const anyscale_msgs::StartNode::Request& req, anyscale
     res.message = "refused: " + why + " (0 = no lease)";
     return;
   }
+  // The master scale's nodes are the robot's own: a lease there (a microsecond of one) would
+  // have the agent end a driver, and nothing renews leases at home.
+  if (is_master_ && req.lease_s > 0.0f)
+  {
+    res.message =
+        "refused: lease_s " + std::to_string(req.lease_s) + ": no lease on the master scale";
+    return;
+  }
+  for (const std::string& why :
+       {checkAmount("cpu_percent", req.cpu_percent, kMaxExpectedCpuPercent, "%"),
+        checkAmount("memory_mb", req.memory_mb, kMaxExpectedMemoryMb, "MB")})
+    if (!why.empty())
+    {
+      res.message = "refused: " + why;
+      return;
+    }
   std::map<std::string, std::string> overrides;
   for (const auto& kv : req.param_overrides)
     if (!overrides.emplace(kv.key, kv.value).second)
@@ -87,12 +81,18 @@ void AgentNode::startNode(const anyscale_msgs::StartNode::Request& req, anyscale
       res.message = "refused: param override " + quoted(kv.key) + " given twice";
       return;
     }
-  const std::string name = qualified(decl->name);
+  if (const std::string why = checkOverrideKeys(*decl, overrides); !why.empty())
+  {
+    res.message = "refused: " + why;
+    return;
+  }
+  const std::string name = qualifiedName(decl->name);
   const PackageLocator locate = [this](const std::string& p) { return locatePackage(p); };
   std::vector<std::string> argv;
   try
   {
-    const std::string exe = resolveExecutable(decl->package, decl->type, catkinPrefixes(std::getenv("CMAKE_PREFIX_PATH")), locate);
+    const std::string exe = resolveExecutable(
+        decl->package, decl->type, catkinPrefixes(std::getenv("CMAKE_PREFIX_PATH")), locate);
     argv = buildArgv(*decl, exe, locate, instanceSuffix(scale_, is_master_));
     // A paused instance (a return to the master scale of a node declared launch.pause_at_home)
     // is resumed: running in milliseconds, with its connections and state, where a start
@@ -104,10 +104,10 @@ void AgentNode::startNode(const anyscale_msgs::StartNode::Request& req, anyscale
       if (const int pid = supervisor_.resume(name, &error); pid > 0)
       {
         setStartPriority(*decl, name, pid);
-        grantLease(name, req.lease_s);
         res.success = true;
         res.pid = pid;
-        res.message = "resumed the paused instance of " + name + " (pid " + std::to_string(pid) + ")";
+        res.message =
+            "resumed the paused instance of " + name + " (pid " + std::to_string(pid) + ")";
         ROS_INFO("%s", res.message.c_str());
         return;
       }
@@ -117,7 +117,8 @@ void AgentNode::startNode(const anyscale_msgs::StartNode::Request& req, anyscale
     // down): a link loss right after a planned move brings the node back to the scale whose
     // old instance is being stopped. The migration stop ends it within its SIGINT grace, so
     // the start waits for that and then goes ahead.
-    if (const auto stopping = supervisor_.info(name); stopping && stopping->state == ProcState::Stopping)
+    if (const auto stopping = supervisor_.info(name);
+        stopping && stopping->state == ProcState::Stopping)
     {
       const auto& o = supervisor_.options();
       if (!supervisor_.waitGone(name, o.sigint_timeout_s + o.sigterm_timeout_s + 5.0))
@@ -126,25 +127,35 @@ void AgentNode::startNode(const anyscale_msgs::StartNode::Request& req, anyscale
                       std::to_string(stopping->pid) + ")";
         return;
       }
-      ROS_INFO("start of %s waited for its previous instance (pid %d) to end", name.c_str(), stopping->pid);
+      ROS_INFO("start of %s waited for its previous instance (pid %d) to end", name.c_str(),
+               stopping->pid);
     }
     if (const auto running = supervisor_.info(name); running && running->pid != 0)
     {
       // Starting is idempotent: the decision node asks for a node where it must run, and a
       // planned move that a link loss interrupts asks for the old instance it had not stopped.
-      grantLease(name, req.lease_s);
+      // Its lease, if it has one, is renewed; never shortened, removed or imposed.
+      renewLease(name, req.lease_s);
       res.success = true;
       res.pid = running->pid;
       res.message = name + " is already running here (pid " + std::to_string(running->pid) + ")";
       return;
     }
-    setNodeParams(rosName(name).substr(1), decl->params, overrides, locate, clear_params_, decl->name);
+    setNodeParams(rosName(name).substr(1), decl->params, overrides, locate, clear_params_,
+                  decl->name);
   }
   catch (const ModelError& e)
   {
     res.message = "refused: " + name + ": " + e.what();
     return;
   }
+  // On a shared scale the start holds its capacity from its admission on; no sync may free the
+  // entry before the node is forked and its lease granted.
+  std::unique_lock<std::mutex> ledger_lock(ledger_mutex_, std::defer_lock);
+  if (ledger_)
+    ledger_lock.lock();
+  if (!admit(name, req, res))
+    return;
   const std::string log_file = logFile(decl->name);
   std::string error;
   // A warm standby becomes the node; if it died meanwhile, the node starts cold as usual.
@@ -154,33 +165,39 @@ void AgentNode::startNode(const anyscale_msgs::StartNode::Request& req, anyscale
     pid = supervisor_.start(name, argv, log_file, &error);
   if (pid <= 0)
   {
+    if (ledger_)
+      syncLedgerLocked();  // frees what it was admitted with
     res.message = "failed: " + name + ": " + error;
     ROS_ERROR("start_node %s", res.message.c_str());
     return;
   }
   setStartPriority(*decl, name, pid);
   grantLease(name, req.lease_s);
+  if (ledger_)
+    syncLedgerLocked();  // its entry ends with the lease just granted
   res.success = true;
   res.pid = pid;
-  res.message = std::string(warm ? "activated the warm standby of " : "started ") + name + " (pid " +
-                std::to_string(pid) + ") from " + argv[0] + "; log " + log_file +
+  res.message = std::string(warm ? "activated the warm standby of " : "started ") + name +
+                " (pid " + std::to_string(pid) + ") from " + argv[0] + "; log " + log_file +
                 (req.lease_s > 0.0f ? "; lease " + std::to_string(req.lease_s) + " s" : "");
   ROS_INFO("%s", res.message.c_str());
   return;
 }
 
-void AgentNode::stopNode(const anyscale_msgs::StopNode::Request& req, anyscale_msgs::StopNode::Response& res)
+void AgentNode::stopNode(const anyscale_msgs::StopNode::Request& req,
+                         anyscale_msgs::StopNode::Response& res)
 {
   res.success = false;
   res.exit_code = -1;
   res.exit_signal = 0;
-  if (const std::string why = checkSeconds("sigint_timeout_s", req.sigint_timeout_s, true, kMaxSigintTimeoutS);
+  if (const std::string why =
+          checkSeconds("sigint_timeout_s", req.sigint_timeout_s, true, kMaxSigintTimeoutS);
       !why.empty())
   {
     res.message = "refused: " + why;
     return;
   }
-  const std::string name = qualified(req.node);
+  const std::string name = qualifiedName(req.node);
   if (req.pause)
   {
     pauseNode(name, res);
@@ -220,7 +237,8 @@ void AgentNode::stopNode(const anyscale_msgs::StopNode::Request& req, anyscale_m
   // has no timeout, and the SIGKILL after sigint_timeout_s ends the node anyway.
   bool left_master = false;
   if (req.sigint_timeout_s > 0.0f && before->state == ProcState::Running)
-    while (!supervisor_.waitGone(name, 0.03) && std::chrono::steady_clock::now() - stop_began < std::chrono::duration<double>(limit))
+    while (!supervisor_.waitGone(name, 0.03) &&
+           std::chrono::steady_clock::now() - stop_began < std::chrono::duration<double>(limit))
       if (link_->stats().up && !graph_.inSystemState(rosName(name)))
       {
         left_master = supervisor_.killNow(name);
@@ -234,13 +252,14 @@ void AgentNode::stopNode(const anyscale_msgs::StopNode::Request& req, anyscale_m
     res.exit_code = after->exit_code;
     res.exit_signal = after->exit_signal;
   }
+  syncLedger();  // frees its capacity on a shared scale
   res.message = gone ? "stopped " + name : "stop of " + name + " did not finish in time";
   if (gone)
     ROS_INFO("stopped %s (pid %d) in %.2f s%s", name.c_str(), before->pid,
              std::chrono::duration<double>(std::chrono::steady_clock::now() - stop_began).count(),
-             left_master                  ? ": killed once it had left the master" :
-             res.exit_signal == SIGKILL ? ": killed after the SIGINT grace" :
-                                          "");
+             left_master                  ? ": killed once it had left the master"
+             : res.exit_signal == SIGKILL ? ": killed after the SIGINT grace"
+                                          : "");
   return;
 }
 
@@ -251,6 +270,15 @@ void AgentNode::pauseNode(const std::string& name, anyscale_msgs::StopNode::Resp
   if (!is_master_)
   {
     res.message = "refused: pause " + quoted(name) + ": only the master scale pauses nodes";
+    return;
+  }
+  // A paused process is neither running nor ended: only a node the model declares able to
+  // resume from a pause, and whose pause the decision node undoes, may be paused.
+  const NodeDecl* decl = model_.find(name);
+  if (!decl || !decl->pause_at_home)
+  {
+    res.message =
+        "refused: pause " + quoted(name) + ": the model does not declare it launch.pause_at_home";
     return;
   }
   std::string error;
@@ -264,7 +292,8 @@ void AgentNode::pauseNode(const std::string& name, anyscale_msgs::StopNode::Resp
   ROS_INFO("%s", res.message.c_str());
 }
 
-void AgentNode::renewLeases(const anyscale_msgs::RenewLeases::Request& req, anyscale_msgs::RenewLeases::Response& res)
+void AgentNode::renewLeases(const anyscale_msgs::RenewLeases::Request& req,
+                            anyscale_msgs::RenewLeases::Response& res)
 {
   res.success = true;
   if (const std::string why = checkSeconds("lease_s", req.lease_s, false, kMaxLeaseS); !why.empty())
@@ -277,10 +306,10 @@ void AgentNode::renewLeases(const anyscale_msgs::RenewLeases::Request& req, anys
   std::vector<std::string> without_lease;
   std::map<std::string, double> renewed;
   const double now = steadyNow();
-  std::lock_guard<std::mutex> lock(leases_mutex_);
+  std::unique_lock<std::mutex> lock(leases_mutex_);
   for (const auto& node : req.nodes)
   {
-    const std::string name = qualified(node);
+    const std::string name = qualifiedName(node);
     const auto info = supervisor_.info(name);
     if (!info || info->pid == 0 || info->state == ProcState::Stopping)
     {
@@ -298,6 +327,8 @@ void AgentNode::renewLeases(const anyscale_msgs::RenewLeases::Request& req, anys
   }
   // One write of the state file for the whole renewal, so that a successor enforces them.
   supervisor_.setLeaseEnds(renewed);
+  lock.unlock();
+  syncLedger();  // a shared scale's entries end with the leases
   res.message = res.success ? "renewed" : "not running here: " + joinQuoted(res.not_running);
   if (!without_lease.empty())
     res.message += "; running without a lease, unchanged: " + joinQuoted(without_lease);
@@ -309,92 +340,6 @@ std::string AgentNode::logFile(const std::string& node) const
   std::string file_name = node;
   std::replace(file_name.begin(), file_name.end(), '/', '.');
   return log_dir_ + "/" + file_name + ".log";
-}
-
-std::vector<std::string> AgentNode::standbyArgv(const NodeDecl& decl)
-{
-  const PackageLocator locate = [this](const std::string& p) { return locatePackage(p); };
-  const auto prefixes = catkinPrefixes(std::getenv("CMAKE_PREFIX_PATH"));
-  const std::string exe = resolveExecutable(decl.package, decl.type, prefixes, locate);
-  if (!isPythonScript(exe))
-    throw ModelError(exe + " is not a Python script (a warm standby pre-imports a rospy node)");
-  std::vector<std::string> argv{resolveExecutable("anyscale_agent_cpp", "python_standby", prefixes, locate)};
-  for (auto& a : buildArgv(decl, exe, locate, instanceSuffix(scale_, is_master_)))
-    argv.push_back(std::move(a));
-  return argv;
-}
-
-void AgentNode::keepStandbysReady()
-{
-  if (!warm_start_)
-    return;
-  const double now = steadyNow();
-  const auto steady = std::chrono::steady_clock::now();
-  for (const auto& node : model_.names())
-  {
-    const NodeDecl* decl = model_.find(node);
-    if (!decl->warm_start)
-      continue;
-    const std::string name = qualified(node);
-    const auto running = supervisor_.info(name);
-    if (const auto waiting = supervisor_.standby(name); waiting && waiting->pid != 0)
-    {
-      if (!runsHere(running))
-        hurryStandby(name, waiting->pid, "the node does not run here");
-      else if (ended_unasked_.count(name))
-        hurryStandby(name, waiting->pid, "the node ended unasked here before");
-      continue;
-    }
-    // Also while the node runs here: it is ready the moment the node leaves or ends.
-    double& due = standby_due_.emplace(name, now).first->second;
-    if (running && running->pid != 0 && running->pid == last_standby_pid_[name])
-    {
-      // The last standby became the node: the next one once the node's own start is over.
-      if (std::chrono::duration<double>(steady - running->started).count() < standby_delay_s_)
-        continue;
-    }
-    else if (now < due)
-    {
-      continue;  // the last one ended by itself: not again at once
-    }
-    due = now + kStandbyRetryS;
-    std::string error;
-    try
-    {
-      const int pid = supervisor_.startStandby(name, standbyArgv(*decl), logFile(node), &error);
-      last_standby_pid_[name] = pid;
-      if (pid > 0)
-        ROS_INFO("warm standby of %s started (pid %d)", name.c_str(), pid);
-      else
-        ROS_WARN("warm standby of %s: %s; retrying in %.0f s", name.c_str(), error.c_str(), kStandbyRetryS);
-    }
-    catch (const ModelError& e)
-    {
-      due = std::numeric_limits<double>::infinity();
-      ROS_ERROR("no warm standby of %s: %s; it starts cold", name.c_str(), e.what());
-    }
-  }
-}
-
-// A standby imports in SCHED_IDLE (scripts/python_standby), taking only CPU nobody else wants.
-// On a robot whose quota its nodes use up (AR recognition takes every frame it can), that is
-// none: a standby prepared while the node ran here was found still importing when a link loss
-// brought the node back, and the return took 2.9 s to register. So once the node does not run
-// here, this scale's standby is the one its next start here will use, and it imports at the
-// nodes' own priority: a one-off 0.3-0.5 s of CPU (AMCL, AR), paid when the node's own
-// instance here has just stopped and left its CPU. So does the standby of a node that ended
-// unasked here before (ended_unasked_): a node that crashed may crash again, and the fault soak
-// found AMCL's second SIGSEGV on the robot 14 s after the first with its standby still importing
-// in SCHED_IDLE: a cold start, 1.6 s to register, /amcl_pose silent 2.39 s (Δ 2 s).
-void AgentNode::hurryStandby(const std::string& name, int pid, const char* why)
-{
-  if (!inIdleScheduling(pid))
-    return;
-  std::string error;
-  if (leaveIdleScheduling(pid, &error))
-    ROS_INFO("warm standby of %s (pid %d): imports at normal priority now, %s", name.c_str(), pid, why);
-  else
-    ROS_WARN_THROTTLE(30.0, "warm standby of %s: %s", name.c_str(), error.c_str());
 }
 
 }  // namespace anyscale_agent

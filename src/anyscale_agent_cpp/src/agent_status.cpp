@@ -37,8 +37,8 @@ void AgentNode::onUplink(const ros::SteadyTimerEvent&)
   if (up)
     ROS_INFO("uplink %s has a carrier again", uplink_interface_.c_str());
   else
-    ROS_WARN("uplink %s lost its carrier (%s): the other scales are out of reach", uplink_interface_.c_str(),
-             toString(carrier));
+    ROS_WARN("uplink %s lost its carrier (%s): the other scales are out of reach",
+             uplink_interface_.c_str(), toString(carrier));
   // At once, not at the next sample: the decision node brings remote nodes home on this.
   publishStatusNow();
 }
@@ -107,6 +107,7 @@ void AgentNode::onSample(const ros::SteadyTimerEvent&)
     if (p.pid != 0)
       pgids.push_back(p.pid);
   anyscale_msgs::ScaleStatus s;
+  s.cpu_held_percent = cpuHeldByOthers();  // a file read under its lock: not under ours
   {
     std::lock_guard<std::mutex> lock(sample_mutex_);
     sampler_.sample(steadyNow(), pgids);

@@ -1,4 +1,5 @@
-// getBusStats polling of the nodes this agent runs: bounded XML-RPC calls, servers found through /proc.
+// getBusStats polling of the nodes this agent runs: bounded XML-RPC calls, servers found
+// through /proc.
 #include "anyscale_agent_cpp/bus_stats_poller.h"
 
 #include <ros/console.h>
@@ -44,10 +45,16 @@ std::string faultText(const XmlRpc::XmlRpcValue& fault)
 class TimedXmlRpcClient : public XmlRpc::XmlRpcClient
 {
 public:
-  enum class Result { Ok, Fault, NoReply };
+  enum class Result
+  {
+    Ok,
+    Fault,
+    NoReply
+  };
   TimedXmlRpcClient(const std::string& host, int port) : XmlRpcClient(host.c_str(), port, "/") {}
 
-  Result call(const char* method, const XmlRpc::XmlRpcValue& params, XmlRpc::XmlRpcValue& result, double timeout_s)
+  Result call(const char* method, const XmlRpc::XmlRpcValue& params, XmlRpc::XmlRpcValue& result,
+              double timeout_s)
   {
     if (!executeNonBlock(method, params))
     {
@@ -72,19 +79,19 @@ struct BusStatsPoller::NodeState
   int server_pid = 0;
   double next_try = 0.0;  // steady s
   int refusals = 0;
-  std::map<std::string, std::map<int, int>> publishers;  // topic -> connection -> publisher's XML-RPC port
+  std::map<std::string, std::map<int, int>>
+      publishers;  // topic -> connection -> publisher's XML-RPC port
 };
 
-BusStatsPoller::BusStatsPoller(double window_s, double period_s, double call_timeout_s, std::string caller_id,
-                               PublisherSeen seen)
-  : window_s_(window_s)
-  , period_s_(period_s)
-  , call_timeout_s_(call_timeout_s)
-  , caller_id_(std::move(caller_id))
-  , seen_(std::move(seen))
-  , thread_(&BusStatsPoller::run, this)
-{
-}
+BusStatsPoller::BusStatsPoller(double window_s, double period_s, double call_timeout_s,
+                               std::string caller_id, PublisherSeen seen)
+  : window_s_(window_s),
+    period_s_(period_s),
+    call_timeout_s_(call_timeout_s),
+    caller_id_(std::move(caller_id)),
+    seen_(std::move(seen)),
+    thread_(&BusStatsPoller::run, this)
+{}
 
 BusStatsPoller::~BusStatsPoller()
 {
@@ -96,7 +103,8 @@ BusStatsPoller::~BusStatsPoller()
   thread_.join();
 }
 
-void BusStatsPoller::setTargets(const std::map<std::string, Node>& topics, const std::vector<Node>& running)
+void BusStatsPoller::setTargets(const std::map<std::string, Node>& topics,
+                                const std::vector<Node>& running)
 {
   std::lock_guard<std::mutex> lock(mutex_);
   for (auto it = rates_.begin(); it != rates_.end();)
@@ -117,7 +125,7 @@ std::vector<BusStatsPoller::TopicRate> BusStatsPoller::stats(double now)
   std::lock_guard<std::mutex> lock(mutex_);
   std::vector<TopicRate> out;
   for (const auto& [topic, node] : topics_)
-    out.push_back({ topic, node.name, rates_.at(topic)->stats(now) });
+    out.push_back({topic, node.name, rates_.at(topic)->stats(now)});
   return out;
 }
 
@@ -170,7 +178,8 @@ void BusStatsPoller::run()
     }
 
     lock.lock();
-    wake_.wait_until(lock, began + std::chrono::duration<double>(period_s_), [this] { return stopping_; });
+    wake_.wait_until(lock, began + std::chrono::duration<double>(period_s_),
+                     [this] { return stopping_; });
   }
 }
 
@@ -189,8 +198,10 @@ bool BusStatsPoller::discover(NodeState& node, double now)
     const int pid = parsePidReply(reply);
     if (std::find(members.begin(), members.end(), pid) == members.end())
       continue;
-    ROS_INFO("topic counter: %s answers XML-RPC at %s:%d (pid %d): its inputs are counted from its getBusStats",
-             node.node.name.c_str(), socket.host.c_str(), socket.port, pid);
+    ROS_INFO(
+        "topic counter: %s answers XML-RPC at %s:%d (pid %d): its inputs are counted from its "
+        "getBusStats",
+        node.node.name.c_str(), socket.host.c_str(), socket.port, pid);
     node.client = std::move(client);
     node.port = socket.port;
     node.server_pid = pid;
@@ -242,7 +253,8 @@ void BusStatsPoller::poll(NodeState& node, double now)
       if (source.name != node.node.name)
         continue;
       const auto c = counts.find(topic);
-      auto grew = rates_.at(topic)->add(t, node.server_pid, c == counts.end() ? std::vector<ConnectionCount>{} : c->second);
+      auto grew = rates_.at(topic)->add(
+          t, node.server_pid, c == counts.end() ? std::vector<ConnectionCount>{} : c->second);
       if (!grew.empty())
         grown.emplace_back(topic, std::move(grew));
     }
@@ -260,7 +272,8 @@ void BusStatsPoller::poll(NodeState& node, double now)
   {
     XmlRpc::XmlRpcValue info;
     InboundPublishers inbound;
-    if (node.client->call("getBusInfo", params, info, call_timeout_s_) == TimedXmlRpcClient::Result::Ok &&
+    if (node.client->call("getBusInfo", params, info, call_timeout_s_) ==
+            TimedXmlRpcClient::Result::Ok &&
         parseBusInfo(info, &inbound, nullptr))
       for (const auto& [topic, connections] : inbound)
         for (const auto& [id, uri] : connections)
@@ -273,7 +286,8 @@ void BusStatsPoller::poll(NodeState& node, double now)
       // Named now, not when the connection was new: a node started a moment ago may not be
       // among the running nodes yet.
       const auto port = node.publishers[topic].find(id);
-      const std::string name = port == node.publishers[topic].end() ? "" : publisherName(port->second);
+      const std::string name =
+          port == node.publishers[topic].end() ? "" : publisherName(port->second);
       if (!name.empty())
         seen_(name);
     }

@@ -10,10 +10,10 @@ namespace anyscale_agent
 
 BusStatsRate::BusStatsRate(double window_s, double overdue_s)
   : window_s_(window_s > 0.0 ? window_s : 2.0), grace_s_(overdue_s > 0.0 ? overdue_s : 0.5)
-{
-}
+{}
 
-std::vector<int> BusStatsRate::add(double t, int pid, const std::vector<ConnectionCount>& connections)
+std::vector<int> BusStatsRate::add(double t, int pid,
+                                   const std::vector<ConnectionCount>& connections)
 {
   std::map<int, ConnectionCount> now;
   for (const auto& c : connections)
@@ -42,7 +42,7 @@ std::vector<int> BusStatsRate::add(double t, int pid, const std::vector<Connecti
   if (messages > 0)
   {
     const double last_arrival = t - (t - last_reply_t_) / double(messages + 1);
-    counted_.push_back({ t, last_arrival, messages, bytes });
+    counted_.push_back({t, last_arrival, messages, bytes});
     ever_received_ = true;
     last_arrival_ = last_arrival;
   }
@@ -61,8 +61,8 @@ RateStats BusStatsRate::stats(double now)
   s.window_s = window_s_;
   // Known (or, once a reply is overdue, assumed) to have received nothing up to here.
   const double silent_until = have_baseline_ ? std::max(last_reply_t_, now - grace_s_) : now;
-  s.last_message_age_s =
-      ever_received_ ? std::max(0.0, silent_until - last_arrival_) : std::numeric_limits<double>::infinity();
+  s.last_message_age_s = ever_received_ ? std::max(0.0, silent_until - last_arrival_)
+                                        : std::numeric_limits<double>::infinity();
   if (counted_.empty())
     return s;
   uint64_t messages = 0, bytes = 0;

@@ -29,8 +29,10 @@ const XmlRpcValue* payload(const XmlRpcValue& reply, std::string* why)
   }
   if (int(reply[0]) != 1)
   {
-    const std::string msg = reply[1].getType() == XmlRpcValue::TypeString ? std::string(reply[1]) : "";
-    *why = "the node answered code " + std::to_string(int(reply[0])) + (msg.empty() ? "" : " (" + msg + ")");
+    const std::string msg =
+        reply[1].getType() == XmlRpcValue::TypeString ? std::string(reply[1]) : "";
+    *why = "the node answered code " + std::to_string(int(reply[0])) +
+           (msg.empty() ? "" : " (" + msg + ")");
     return nullptr;
   }
   return &reply[2];
@@ -66,7 +68,8 @@ bool parseBusStats(const XmlRpcValue& reply, SubscribedCounts* out, std::string*
   {
     const XmlRpcValue& entry = subs[i];
     if (!isArray(entry, 2) || entry[0].getType() != XmlRpcValue::TypeString || !isArray(entry[1]))
-      return fail(error, "getBusStats: subscribeStats entry " + std::to_string(i) + " is not [topic, [connections]]");
+      return fail(error, "getBusStats: subscribeStats entry " + std::to_string(i) +
+                             " is not [topic, [connections]]");
     const std::string topic = entry[0];
     auto& conns = parsed[topic];
     for (int j = 0; j < entry[1].size(); ++j)

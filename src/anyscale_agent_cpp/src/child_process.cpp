@@ -1,4 +1,5 @@
-// fork/exec of a node process: new session, stdio redirected, signals and nice reset, agent fds closed.
+// fork/exec of a node process: new session, stdio redirected, signals and nice reset, agent
+// fds closed.
 #include "anyscale_agent_cpp/child_process.h"
 
 #include <fcntl.h>
@@ -25,8 +26,8 @@ int failSpawn(std::string* error, const std::string& why)
 }
 }  // namespace
 
-int spawnChild(const std::vector<std::string>& argv, int stdin_fd, int log_fd, int death_signal, int nice,
-               std::string* error)
+int spawnChild(const std::vector<std::string>& argv, int stdin_fd, int log_fd, int death_signal,
+               int nice, std::string* error)
 {
   int pipe_fds[2];
   if (::pipe2(pipe_fds, O_CLOEXEC) != 0)

@@ -30,16 +30,15 @@ bool splitUri(const std::string& uri, std::string* host, int* port)
   return !host->empty() && *port > 0;
 }
 
-GraphMonitor::GraphMonitor() : host_(ros::network::getHost())
-{
-}
+GraphMonitor::GraphMonitor() : host_(ros::network::getHost()) {}
 
 std::optional<GraphMonitor::Registration> GraphMonitor::lookup(const std::string& node) const
 {
   XmlRpc::XmlRpcValue args, result, payload;
   args[0] = ros::this_node::getName();
   args[1] = node;
-  if (!ros::master::execute("lookupNode", args, result, payload, false) || payload.getType() != XmlRpc::XmlRpcValue::TypeString)
+  if (!ros::master::execute("lookupNode", args, result, payload, false) ||
+      payload.getType() != XmlRpc::XmlRpcValue::TypeString)
     return std::nullopt;
   Registration r;
   int port = 0;
@@ -49,8 +48,9 @@ std::optional<GraphMonitor::Registration> GraphMonitor::lookup(const std::string
   XmlRpc::XmlRpcClient client(r.host.c_str(), port, "/");
   XmlRpc::XmlRpcValue pid_args, pid_result;
   pid_args[0] = ros::this_node::getName();
-  if (client.execute("getPid", pid_args, pid_result) && pid_result.getType() == XmlRpc::XmlRpcValue::TypeArray &&
-      pid_result.size() == 3 && int(pid_result[0]) == 1 && pid_result[2].getType() == XmlRpc::XmlRpcValue::TypeInt)
+  if (client.execute("getPid", pid_args, pid_result) &&
+      pid_result.getType() == XmlRpc::XmlRpcValue::TypeArray && pid_result.size() == 3 &&
+      int(pid_result[0]) == 1 && pid_result[2].getType() == XmlRpc::XmlRpcValue::TypeInt)
     r.pid = int(pid_result[2]);
   client.close();
   return r;
@@ -65,7 +65,7 @@ std::optional<SystemState> GraphMonitor::systemState() const
     return std::nullopt;
   // payload: [publishers, subscribers, services], each a list of [name, [node, ...]].
   SystemState state;
-  SystemState::Table* tables[] = { &state.publishers, &state.subscribers, &state.services };
+  SystemState::Table* tables[] = {&state.publishers, &state.subscribers, &state.services};
   for (int kind = 0; kind < 3; ++kind)
     for (int i = 0; i < payload[kind].size(); ++i)
     {
@@ -84,22 +84,25 @@ bool GraphMonitor::inSystemState(const std::string& node) const
   return !state || listsNode(*state, node) || !knowsAgent(*state, ros::this_node::getName());
 }
 
-std::optional<std::set<std::string>> GraphMonitor::localSubscribedTopics(const std::set<std::string>& own_nodes) const
+std::optional<std::set<std::string>> GraphMonitor::localSubscribedTopics(
+    const std::set<std::string>& own_nodes) const
 {
   const auto state = systemState();
   if (!state)
     return std::nullopt;
-  return anyscale_agent::localSubscribedTopics(*state, ros::this_node::getName(), [&](const std::string& node) {
-    if (own_nodes.count(node))
-      return true;
-    XmlRpc::XmlRpcValue a, r, p;
-    a[0] = ros::this_node::getName();
-    a[1] = node;
-    std::string host;
-    int port = 0;
-    return ros::master::execute("lookupNode", a, r, p, false) && p.getType() == XmlRpc::XmlRpcValue::TypeString &&
-           splitUri(std::string(p), &host, &port) && host == host_;
-  });
+  return anyscale_agent::localSubscribedTopics(
+      *state, ros::this_node::getName(), [&](const std::string& node) {
+        if (own_nodes.count(node))
+          return true;
+        XmlRpc::XmlRpcValue a, r, p;
+        a[0] = ros::this_node::getName();
+        a[1] = node;
+        std::string host;
+        int port = 0;
+        return ros::master::execute("lookupNode", a, r, p, false) &&
+               p.getType() == XmlRpc::XmlRpcValue::TypeString &&
+               splitUri(std::string(p), &host, &port) && host == host_;
+      });
 }
 
 }  // namespace anyscale_agent

@@ -22,7 +22,8 @@ bool inTable(const SystemState::Table& table, const std::string& node)
 
 bool listsNode(const SystemState& state, const std::string& node)
 {
-  return inTable(state.publishers, node) || inTable(state.subscribers, node) || inTable(state.services, node);
+  return inTable(state.publishers, node) || inTable(state.subscribers, node) ||
+         inTable(state.services, node);
 }
 
 bool knowsAgent(const SystemState& state, const std::string& self)
@@ -30,8 +31,9 @@ bool knowsAgent(const SystemState& state, const std::string& self)
   return inTable(state.publishers, self);
 }
 
-std::optional<std::set<std::string>> localSubscribedTopics(const SystemState& state, const std::string& self,
-                                                           const std::function<bool(const std::string&)>& is_local)
+std::optional<std::set<std::string>> localSubscribedTopics(
+    const SystemState& state, const std::string& self,
+    const std::function<bool(const std::string&)>& is_local)
 {
   if (!knowsAgent(state, self))
     return std::nullopt;

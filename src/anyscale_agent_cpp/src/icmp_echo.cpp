@@ -12,9 +12,9 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
-#include <limits>
 #include <cstring>
 #include <ctime>
+#include <limits>
 #include <stdexcept>
 
 namespace anyscale_agent
@@ -47,7 +47,8 @@ uint32_t resolve(const std::string& host, std::string* address)
   addrinfo* found = nullptr;
   const int err = getaddrinfo(host.c_str(), nullptr, &hints, &found);
   if (err != 0 || found == nullptr)
-    throw std::runtime_error("cannot resolve '" + host + "' to an IPv4 address: " + gai_strerror(err));
+    throw std::runtime_error("cannot resolve '" + host +
+                             "' to an IPv4 address: " + gai_strerror(err));
   const uint32_t peer = reinterpret_cast<sockaddr_in*>(found->ai_addr)->sin_addr.s_addr;
   freeaddrinfo(found);
   char text[INET_ADDRSTRLEN] = {};
@@ -66,9 +67,10 @@ IcmpEcho::IcmpEcho(const std::string& host) : buffer_(70000)
     const int dgram_errno = errno;
     fd_ = UniqueFd(::socket(AF_INET, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, IPPROTO_ICMP));
     if (fd_.get() < 0)
-      throw std::runtime_error(std::string("no ICMP socket: a ping socket is refused (") + std::strerror(dgram_errno) +
-                               "; see net.ipv4.ping_group_range) and a raw one too (" + std::strerror(errno) +
-                               "; needs root or CAP_NET_RAW)");
+      throw std::runtime_error(std::string("no ICMP socket: a ping socket is refused (") +
+                               std::strerror(dgram_errno) +
+                               "; see net.ipv4.ping_group_range) and a raw one too (" +
+                               std::strerror(errno) + "; needs root or CAP_NET_RAW)");
     raw_ = true;
   }
   // A raw socket sees every echo reply to this host: our id tells ours apart. A ping socket's
@@ -93,7 +95,8 @@ double IcmpEcho::send(uint16_t seq, std::size_t payload_bytes)
   to.sin_family = AF_INET;
   to.sin_addr.s_addr = peer_;
   const double t = realtimeNow();
-  if (::sendto(fd_.get(), packet.data(), packet.size(), 0, reinterpret_cast<sockaddr*>(&to), sizeof(to)) < 0)
+  if (::sendto(fd_.get(), packet.data(), packet.size(), 0, reinterpret_cast<sockaddr*>(&to),
+               sizeof(to)) < 0)
     throw std::runtime_error("ICMP echo to " + address_ + ": " + std::strerror(errno));
   return t;
 }
@@ -192,8 +195,8 @@ double echoBandwidthMbps(std::size_t bytes, double bulk_rtt_s, double floor_rtt_
   return 2.0 * 8.0 * double(bytes) / std::max(bulk_rtt_s - floor_rtt_s, 50e-6) / 1e6;
 }
 
-double measureEchoBandwidth(IcmpEcho& echo, std::size_t bulk_bytes, double timeout_s, double bulk_timeout_s,
-                            uint16_t* seq, RttFloor& floor)
+double measureEchoBandwidth(IcmpEcho& echo, std::size_t bulk_bytes, double timeout_s,
+                            double bulk_timeout_s, uint16_t* seq, RttFloor& floor)
 {
   const uint16_t small_seq = ++*seq;
   const double small_sent = echo.send(small_seq, 56);

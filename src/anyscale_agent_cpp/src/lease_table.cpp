@@ -1,6 +1,8 @@
 // Lease bookkeeping: grant, renew, expire.
 #include "anyscale_agent_cpp/lease_table.h"
 
+#include <algorithm>
+
 namespace anyscale_agent
 {
 
@@ -17,7 +19,7 @@ bool LeaseTable::renew(const std::string& node, double now, double duration_s)
   auto it = expiry_.find(node);
   if (it == expiry_.end() || duration_s <= 0.0)
     return false;
-  it->second = now + duration_s;
+  it->second = std::max(it->second, now + duration_s);
   return true;
 }
 

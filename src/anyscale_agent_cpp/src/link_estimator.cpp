@@ -18,19 +18,17 @@ double silentSince(double heard, double subscribed_at)
 }
 
 LinkSample::LinkSample() : rtt_s(kNaN), rtt_mean_s(kNaN), bandwidth_mbps(kNaN), last_answer_t(kNaN)
-{
-}
+{}
 
 LinkEstimator::LinkEstimator(double timeout_s, std::size_t history, double bandwidth_smoothing)
-  : timeout_s_(timeout_s)
-  , history_(std::max<std::size_t>(history, 1))
-  , smoothing_(std::clamp(bandwidth_smoothing, 0.0, 1.0))
-  , last_rtt_(kNaN)
-  , last_answer_t_(kNaN)
-  , bandwidth_mbps_(kNaN)
-  , unconfirmed_drop_(kNaN)
-{
-}
+  : timeout_s_(timeout_s),
+    history_(std::max<std::size_t>(history, 1)),
+    smoothing_(std::clamp(bandwidth_smoothing, 0.0, 1.0)),
+    last_rtt_(kNaN),
+    last_answer_t_(kNaN),
+    bandwidth_mbps_(kNaN),
+    unconfirmed_drop_(kNaN)
+{}
 
 void LinkEstimator::sent(uint32_t seq, double t, uint32_t bytes, ProbeKind kind)
 {

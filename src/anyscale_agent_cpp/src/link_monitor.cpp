@@ -1,6 +1,8 @@
 // Link probes: small ones for RTT and loss, bulk ones for a bandwidth estimate.
 #include "anyscale_agent_cpp/link_monitor.h"
 
+#include <boost/make_shared.hpp>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -8,20 +10,21 @@
 #include <optional>
 
 #include "anyscale_agent_cpp/tcp_reachability.h"
+#include "anyscale_agent_cpp/wire_checked.h"
 
 namespace anyscale_agent
 {
 
-LinkMonitor::LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, std::string master_scale,
-                         LinkOptions options, RenewAlso renew_also)
-  : nh_(nh)
-  , renew_also_(std::move(renew_also))
-  , scale_(std::move(scale))
-  , is_master_(is_master)
-  , master_scale_(std::move(master_scale))
-  , options_(options)
-  , estimator_(options.timeout_s)
-  , started_at_(now())
+LinkMonitor::LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master,
+                         std::string master_scale, LinkOptions options, RenewAlso renew_also)
+  : nh_(nh),
+    renew_also_(std::move(renew_also)),
+    scale_(std::move(scale)),
+    is_master_(is_master),
+    master_scale_(std::move(master_scale)),
+    options_(options),
+    estimator_(options.timeout_s),
+    started_at_(now())
 {
   resubscribed_at_ = started_at_;
   if (is_master_)
@@ -29,8 +32,9 @@ LinkMonitor::LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, 
     pub_ = nh.advertise<anyscale_msgs::LinkProbe>("/anyscale/link/echo", 20);
     subscribe();
     renew_thread_ = std::thread(&LinkMonitor::renewWhenAsked, this);
-    timer_ = nh.createSteadyTimer(ros::WallDuration(options_.probe_period_s),
-                                  [this](const ros::SteadyTimerEvent&) { resubscribeIfSilent(now()); });
+    timer_ =
+        nh.createSteadyTimer(ros::WallDuration(options_.probe_period_s),
+                             [this](const ros::SteadyTimerEvent&) { resubscribeIfSilent(now()); });
     return;
   }
   // A short queue: probes queued behind a dead link are stale by the time it returns.
@@ -54,12 +58,16 @@ LinkMonitor::LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, 
     catch (const std::exception& e)
     {
       icmp_.reset();
-      bandwidth_method_ = std::string("ROS probes echoed by the master's agent (they read low while it waits for "
-                                      "the CPU): ") + e.what();
+      bandwidth_method_ =
+          std::string(
+              "ROS probes echoed by the master's agent (they read low while it waits for "
+              "the CPU): ") +
+          e.what();
     }
     ROS_INFO("link bandwidth by %s", bandwidth_method_.c_str());
   }
-  timer_ = nh.createSteadyTimer(ros::WallDuration(options_.probe_period_s), &LinkMonitor::onTimer, this);
+  timer_ =
+      nh.createSteadyTimer(ros::WallDuration(options_.probe_period_s), &LinkMonitor::onTimer, this);
 }
 
 void LinkMonitor::subscribe()
@@ -73,11 +81,16 @@ void LinkMonitor::subscribe()
   // test test_link_probe_renewal). Released first, the subscription ends and the new one asks
   // the master for the publishers and connects afresh (in the renewal thread: see renewWhenAsked).
   sub_.shutdown();
-  const auto hints = ros::TransportHints().tcpNoDelay();
-  if (is_master_)
-    sub_ = nh_.subscribe("/anyscale/link/probe", 20, &LinkMonitor::onProbe, this, hints);
-  else
-    sub_ = nh_.subscribe("/anyscale/link/echo", 20, &LinkMonitor::onEcho, this, hints);
+  ros::SubscribeOptions ops;
+  const std::string topic = is_master_ ? "/anyscale/link/probe" : "/anyscale/link/echo";
+  ops.init<anyscale_msgs::LinkProbe>(
+      topic, 20,
+      boost::bind(is_master_ ? &LinkMonitor::onProbe : &LinkMonitor::onEcho, this,
+                  boost::placeholders::_1));
+  ops.transport_hints = ros::TransportHints().tcpNoDelay();
+  // Anyone may publish here: a probe claiming a payload of 4 GB would have roscpp allocate it.
+  ops.helper = boost::make_shared<WireCheckedSubscription>(ops.helper, kLinkProbeWire, topic);
+  sub_ = nh_.subscribe(ops);
 }
 
 void LinkMonitor::resubscribeIfSilent(double t)
@@ -94,11 +107,13 @@ void LinkMonitor::resubscribeIfSilent(double t)
   {
     const char* what = is_master_ ? "probe" : "echo";
     if (std::isnan(heard))
-      ROS_INFO("no link %s since this agent started %.0f s ago: subscribing again, and every %.0f s until one comes",
-               what, t - started_at_, kResubscribeAfterS);
+      ROS_INFO(
+          "no link %s since this agent started %.0f s ago: subscribing again, and every %.0f s "
+          "until one comes",
+          what, t - started_at_, kResubscribeAfterS);
     else
-      ROS_INFO("no link %s for %.0f s: subscribing again, and every %.0f s until one comes", what, t - heard,
-               kResubscribeAfterS);
+      ROS_INFO("no link %s for %.0f s: subscribing again, and every %.0f s until one comes", what,
+               t - heard, kResubscribeAfterS);
   }
   silence_logged_ = silence_start;
   std::lock_guard<std::mutex> lock(renew_mutex_);
@@ -111,7 +126,8 @@ void LinkMonitor::renewWhenAsked()
   std::unique_lock<std::mutex> lock(renew_mutex_);
   while (!renew_stopping_)
   {
-    wake_renewal_.wait_for(lock, std::chrono::seconds(1), [this] { return renewal_wanted_ || renew_stopping_; });
+    wake_renewal_.wait_for(lock, std::chrono::seconds(1),
+                           [this] { return renewal_wanted_ || renew_stopping_; });
     if (renew_stopping_)
       return;
     const bool link_wanted = renewal_wanted_;
@@ -168,10 +184,13 @@ void LinkMonitor::measureByEcho()
   while (!stopping_)
   {
     // A lower reading is confirmed at the next probe period, not a bulk period later.
-    const double wait_s = estimator_.confirmationWanted() ? options_.probe_period_s : options_.bulk_period_s;
-    if (wake_icmp_.wait_for(lock, std::chrono::duration<double>(wait_s), [this] { return stopping_; }))
+    const double wait_s =
+        estimator_.confirmationWanted() ? options_.probe_period_s : options_.bulk_period_s;
+    if (wake_icmp_.wait_for(lock, std::chrono::duration<double>(wait_s),
+                            [this] { return stopping_; }))
       break;
-    const std::size_t bytes = echoBulkBytes(estimator_.bandwidthMbps(), std::size_t(options_.bulk_bytes));
+    const std::size_t bytes =
+        echoBulkBytes(estimator_.bandwidthMbps(), std::size_t(options_.bulk_bytes));
     lock.unlock();
     double mbps = std::numeric_limits<double>::quiet_NaN();
     try

@@ -11,18 +11,21 @@
 namespace anyscale_agent
 {
 
-std::vector<ListeningSocket> listeningSockets(const std::vector<int>& pids, const std::string& proc_root)
+std::vector<ListeningSocket> listeningSockets(const std::vector<int>& pids,
+                                              const std::string& proc_root)
 {
   std::vector<ListeningSocket> out;
   std::set<uint64_t> seen;
   for (const int pid : pids)
   {
-    const std::map<uint64_t, int> sockets = socketFds(proc_root + "/" + std::to_string(pid) + "/fd");
+    const std::map<uint64_t, int> sockets =
+        socketFds(proc_root + "/" + std::to_string(pid) + "/fd");
     if (sockets.empty())
       continue;
     std::vector<TcpEntry> entries;
-    for (const bool v6 : { false, true })
-      if (const auto text = readFile(proc_root + "/" + std::to_string(pid) + (v6 ? "/net/tcp6" : "/net/tcp")))
+    for (const bool v6 : {false, true})
+      if (const auto text =
+              readFile(proc_root + "/" + std::to_string(pid) + (v6 ? "/net/tcp6" : "/net/tcp")))
         for (auto& e : parseProcNetTcp(*text, v6))
           if (sockets.count(e.inode))
             entries.push_back(e);

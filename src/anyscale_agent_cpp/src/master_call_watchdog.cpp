@@ -43,12 +43,15 @@ double steadyNow()
 }  // namespace
 
 MasterCallWatchdog::MasterCallWatchdog(const std::string& master_host, int master_port)
-  : host_(master_host), port_(master_port), stuck_(ipv4Remote(master_host, master_port), kStuckAfterS)
+  : host_(master_host),
+    port_(master_port),
+    stuck_(ipv4Remote(master_host, master_port), kStuckAfterS)
 {
   if (stuck_.remote().empty())
   {
-    ROS_WARN("master host %s has no IPv4 address: calls to it stuck on a lost connection are not broken",
-             host_.c_str());
+    ROS_WARN(
+        "master host %s has no IPv4 address: calls to it stuck on a lost connection are not broken",
+        host_.c_str());
     return;
   }
   thread_ = std::thread(&MasterCallWatchdog::run, this);
@@ -78,9 +81,11 @@ void MasterCallWatchdog::run()
       continue;
     for (const uint64_t inode : stuck)
       if (breakConnection(socketFdOfInode(inode), inode))
-        ROS_WARN("a call to the master at %s waited %.0f s or more on a connection the link had lost: broken, "
-                 "so that roscpp makes the call again on a new one",
-                 stuck_.remote().c_str(), kStuckAfterS);
+        ROS_WARN(
+            "a call to the master at %s waited %.0f s or more on a connection the link had lost: "
+            "broken, "
+            "so that roscpp makes the call again on a new one",
+            stuck_.remote().c_str(), kStuckAfterS);
   }
 }
 

@@ -25,7 +25,8 @@ bool isBaseName(const std::string& s)
   return true;
 }
 
-std::string scalarAt(const YAML::Node& map, const std::string& key, const std::string& where, bool required)
+std::string scalarAt(const YAML::Node& map, const std::string& key, const std::string& where,
+                     bool required)
 {
   const YAML::Node v = map[key];
   if (!v)
@@ -44,7 +45,58 @@ bool isExecutableFile(const fs::path& p)
   std::error_code ec;
   return fs::is_regular_file(p, ec) && ::access(p.c_str(), X_OK) == 0;
 }
+
+bool readBool(const YAML::Node& launch, const std::string& key, const std::string& where)
+{
+  const YAML::Node v = launch[key];
+  if (!v)
+    return false;
+  if (!v.IsScalar() || (v.Scalar() != "true" && v.Scalar() != "false"))
+    throw ModelError(where + ": launch." + key + " must be true or false");
+  return v.Scalar() == "true";
+}
+
+// Walks a parameter value as a start converts it, every alias expanded, within `left` values.
+void checkParamTree(const YAML::Node& v, const std::string& where, std::size_t& left, int depth)
+{
+  if (left == 0)
+    throw ModelError(where + ": launch.params hold more than " + std::to_string(kMaxParamValues) +
+                     " values with their aliases expanded");
+  --left;
+  if (depth > kMaxParamDepth)
+    throw ModelError(where + ": launch.params nested deeper than " +
+                     std::to_string(kMaxParamDepth));
+  if (v.IsScalar())
+    return;
+  if (v.IsSequence())
+  {
+    for (std::size_t i = 0; i < v.size(); ++i)
+      checkParamTree(v[i], where + "[" + std::to_string(i) + "]", left, depth + 1);
+    return;
+  }
+  if (!v.IsMap())
+    throw ModelError(where + ": a null value cannot be a ROS parameter");
+  for (const auto& kv : v)
+  {
+    if (!kv.first.IsScalar())
+      throw ModelError(where + ": a map key in launch.params must be a name");
+    checkParamTree(kv.second, where + "." + kv.first.Scalar(), left, depth + 1);
+  }
+}
+
+std::string globalTopic(const std::string& topic)
+{
+  return !topic.empty() && topic[0] == '/' ? topic : "/" + topic;
+}
 }  // namespace
+
+std::set<std::string> handoffKeys(const std::string& kind)
+{
+  if (kind == "pose")
+    return {"initial_pose_x", "initial_pose_y", "initial_pose_a",    "initial_cov_xx",
+            "initial_cov_yy", "initial_cov_aa", "initial_pose_stamp"};
+  throw ModelError("state_handoff.kind '" + kind + "' is not one of: pose");
+}
 
 bool isValidNodeName(const std::string& name)
 {
@@ -64,7 +116,8 @@ bool isValidPackageName(const std::string& name)
 
 bool isValidExecutableName(const std::string& name)
 {
-  if (name.empty() || name == "." || name == ".." || name[0] == '-' || name.find("..") != std::string::npos)
+  if (name.empty() || name == "." || name == ".." || name[0] == '-' ||
+      name.find("..") != std::string::npos)
     return false;
   for (char c : name)
     if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_' && c != '-' && c != '.')
@@ -101,8 +154,10 @@ NodeModel NodeModel::parse(const YAML::Node& root, const std::string& source)
     d.name = scalarAt(n, "name", at, true);
     const std::string where = source + ": node '" + d.name + "'";
     if (!isValidNodeName(d.name))
-      throw ModelError(where + ": 'name' is not a valid ROS node name (letters, digits, '_', '/'-separated, "
-                               "no leading '/')");
+      throw ModelError(
+          where +
+          ": 'name' is not a valid ROS node name (letters, digits, '_', '/'-separated, "
+          "no leading '/')");
     if (d.name.find(kInstanceSeparator) != std::string::npos)
       throw ModelError(where + ": 'name' must not contain '" + kInstanceSeparator +
                        "' (reserved for instance names on remote scales, NAME__SCALE)");
@@ -116,7 +171,8 @@ NodeModel NodeModel::parse(const YAML::Node& root, const std::string& source)
     if (!isValidPackageName(d.package))
       throw ModelError(where + ": launch.package '" + d.package + "' is not a valid package name");
     if (!isValidExecutableName(d.type))
-      throw ModelError(where + ": launch.type '" + d.type + "' must be a plain executable name (no '/' or '..')");
+      throw ModelError(where + ": launch.type '" + d.type +
+                       "' must be a plain executable name (no '/' or '..')");
     if (const YAML::Node args = launch["args"])
     {
       if (!args.IsSequence())
@@ -145,16 +201,30 @@ NodeModel NodeModel::parse(const YAML::Node& root, const std::string& source)
         throw ModelError(where + ": launch.params must be a map {name: value}");
       // Checked here, not at the first start: a key that is a list made the start's
       // conversion throw a YAML exception out of the start_node service.
+      std::size_t left = kMaxParamValues;
       for (const auto& kv : params)
+      {
         if (!kv.first.IsScalar() || !isValidNodeName(kv.first.Scalar()))
-          throw ModelError(where + ": launch.params keys must be parameter names (letters, digits, '_')");
+          throw ModelError(where +
+                           ": launch.params keys must be parameter names (letters, digits, '_')");
+        checkParamTree(kv.second, where + " param '" + kv.first.Scalar() + "'", left, 1);
+      }
       d.params = params;
     }
-    if (const YAML::Node warm = launch["warm_start"])
+    d.warm_start = readBool(launch, "warm_start", where);
+    d.pause_at_home = readBool(launch, "pause_at_home", where);
+    if (const YAML::Node handoff = n["state_handoff"])
     {
-      if (!warm.IsScalar() || (warm.Scalar() != "true" && warm.Scalar() != "false"))
-        throw ModelError(where + ": launch.warm_start must be true or false");
-      d.warm_start = warm.Scalar() == "true";
+      if (!handoff.IsMap())
+        throw ModelError(where + ": state_handoff must be a map {kind: pose, topic: /name}");
+      try
+      {
+        d.handoff_keys = handoffKeys(scalarAt(handoff, "kind", where + " state_handoff", true));
+      }
+      catch (const ModelError& e)
+      {
+        throw ModelError(where + ": " + e.what());
+      }
     }
     if (const YAML::Node nice = launch["nice"])
     {
@@ -165,11 +235,41 @@ NodeModel NodeModel::parse(const YAML::Node& root, const std::string& source)
     }
     model.nodes_.emplace(d.name, std::move(d));
   }
-  model.readOutputTolerances(root["connections"], source);
+  model.readConnections(root["connections"], source);
+  model.readScales(root["scales"], source);
   return model;
 }
 
-void NodeModel::readOutputTolerances(const YAML::Node& connections, const std::string& source)
+void NodeModel::readScales(const YAML::Node& scales, const std::string& source)
+{
+  if (!scales)
+    return;
+  if (!scales.IsSequence())
+    throw ModelError(source + ": 'scales' must be a list");
+  std::size_t index = 0;
+  for (const auto& s : scales)
+  {
+    const std::string at = source + ": scales[" + std::to_string(index++) + "]";
+    if (!s.IsMap())
+      throw ModelError(at + ": expected a map");
+    const std::string name = scalarAt(s, "name", at, true);
+    double memory_mb = 0.0;
+    if (const YAML::Node m = s["memory_mb"];
+        m && (!m.IsScalar() || !YAML::convert<double>::decode(m, memory_mb) || !(memory_mb > 0.0) ||
+              !std::isfinite(memory_mb)))
+      throw ModelError(at + " (" + name + "): 'memory_mb' must be a positive number");
+    if (memory_mb > 0.0)
+      scale_memory_mb_[name] = memory_mb;
+  }
+}
+
+std::optional<double> NodeModel::scaleMemoryMb(const std::string& scale) const
+{
+  const auto it = scale_memory_mb_.find(scale);
+  return it == scale_memory_mb_.end() ? std::nullopt : std::optional<double>(it->second);
+}
+
+void NodeModel::readConnections(const YAML::Node& connections, const std::string& source)
 {
   if (!connections)
     return;
@@ -182,10 +282,15 @@ void NodeModel::readOutputTolerances(const YAML::Node& connections, const std::s
     if (!c.IsMap())
       throw ModelError(at + ": expected a map");
     const std::string publisher = scalarAt(c, "publisher", at, true);
+    if (const YAML::Node subscriber = c["subscriber"]; subscriber && subscriber.IsScalar())
+      if (const YAML::Node topic = c["topic"]; topic && topic.IsScalar())
+        subscriptions_.emplace(subscriber.Scalar(), globalTopic(topic.Scalar()));
     double tolerance = 0.0;
     if (const YAML::Node t = c["tolerance"])
-      if (!t.IsScalar() || !YAML::convert<double>::decode(t, tolerance) || !std::isfinite(tolerance) || tolerance < 0.0)
-        throw ModelError(at + " (publisher '" + publisher + "'): 'tolerance' must be a number of seconds >= 0");
+      if (!t.IsScalar() || !YAML::convert<double>::decode(t, tolerance) ||
+          !std::isfinite(tolerance) || tolerance < 0.0)
+        throw ModelError(at + " (publisher '" + publisher +
+                         "'): 'tolerance' must be a number of seconds >= 0");
     const auto node = nodes_.find(publisher);
     if (node == nodes_.end() || tolerance <= 0.0)
       continue;  // an unknown publisher is the decision node's error to report
@@ -199,6 +304,12 @@ const NodeDecl* NodeModel::find(const std::string& name) const
   const std::string key = !name.empty() && name[0] == '/' ? name.substr(1) : name;
   const auto it = nodes_.find(key);
   return it == nodes_.end() ? nullptr : &it->second;
+}
+
+bool NodeModel::subscribes(const std::string& node, const std::string& topic) const
+{
+  const NodeDecl* decl = find(node);
+  return decl && subscriptions_.count({decl->name, globalTopic(topic)}) > 0;
 }
 
 std::vector<std::string> NodeModel::names() const
@@ -225,7 +336,8 @@ std::string substituteFind(const std::string& text, const PackageLocator& locate
     std::string verb, pkg, extra;
     words >> verb >> pkg >> extra;
     if (verb != "find" || pkg.empty() || !extra.empty())
-      throw ModelError("only $(find pkg) is supported, got '" + text.substr(start, end - start + 1) + "'");
+      throw ModelError("only $(find pkg) is supported, got '" +
+                       text.substr(start, end - start + 1) + "'");
     const std::string dir = isValidPackageName(pkg) ? locate(pkg) : "";
     if (dir.empty())
       throw ModelError("$(find " + pkg + "): package not found");
@@ -236,7 +348,8 @@ std::string substituteFind(const std::string& text, const PackageLocator& locate
 }
 
 std::string resolveExecutable(const std::string& package, const std::string& type,
-                              const std::vector<std::string>& prefixes, const PackageLocator& locate)
+                              const std::vector<std::string>& prefixes,
+                              const PackageLocator& locate)
 {
   if (!isValidPackageName(package))
     throw ModelError("invalid package name '" + package + "'");
@@ -253,7 +366,8 @@ std::string resolveExecutable(const std::string& package, const std::string& typ
     throw ModelError("package '" + package + "' not found (not on ROS_PACKAGE_PATH)");
   std::vector<fs::path> found;
   std::error_code ec;
-  for (fs::recursive_directory_iterator it(dir, fs::directory_options::skip_permission_denied, ec), end;
+  for (fs::recursive_directory_iterator it(dir, fs::directory_options::skip_permission_denied, ec),
+       end;
        !ec && it != end; it.increment(ec))
   {
     if (it->is_directory(ec) && it->path().filename().string().rfind('.', 0) == 0)
@@ -265,11 +379,11 @@ std::string resolveExecutable(const std::string& package, const std::string& typ
       found.push_back(it->path());
   }
   if (found.empty())
-    throw ModelError("no executable '" + type + "' in package '" + package + "' (looked in <prefix>/lib/" + package +
-                     " and below " + dir + ")");
+    throw ModelError("no executable '" + type + "' in package '" + package +
+                     "' (looked in <prefix>/lib/" + package + " and below " + dir + ")");
   if (found.size() > 1)
-    throw ModelError("several executables named '" + type + "' in package '" + package + "': " +
-                     found[0].string() + ", " + found[1].string());
+    throw ModelError("several executables named '" + type + "' in package '" + package +
+                     "': " + found[0].string() + ", " + found[1].string());
   return found[0].string();
 }
 
@@ -290,13 +404,18 @@ std::string instanceSuffix(const std::string& scale, bool on_master)
   return on_master ? "" : kInstanceSeparator + scale;
 }
 
+std::string qualifiedName(const std::string& name)
+{
+  return !name.empty() && name[0] == '/' ? name : "/" + name;
+}
+
 std::string instanceName(const std::string& declared, const std::string& scale, bool on_master)
 {
   return declared + instanceSuffix(scale, on_master);
 }
 
-std::vector<std::string> buildArgv(const NodeDecl& decl, const std::string& executable, const PackageLocator& locate,
-                                   const std::string& name_suffix)
+std::vector<std::string> buildArgv(const NodeDecl& decl, const std::string& executable,
+                                   const PackageLocator& locate, const std::string& name_suffix)
 {
   std::vector<std::string> argv{executable};
   for (const auto& a : decl.args)
@@ -306,7 +425,8 @@ std::vector<std::string> buildArgv(const NodeDecl& decl, const std::string& exec
   const auto slash = decl.name.rfind('/');
   if (slash != std::string::npos)
     argv.push_back("__ns:=/" + decl.name.substr(0, slash));
-  argv.push_back("__name:=" + decl.name.substr(slash == std::string::npos ? 0 : slash + 1) + name_suffix);
+  argv.push_back("__name:=" + decl.name.substr(slash == std::string::npos ? 0 : slash + 1) +
+                 name_suffix);
   return argv;
 }
 

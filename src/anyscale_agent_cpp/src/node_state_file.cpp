@@ -3,6 +3,7 @@
 #include "anyscale_agent_cpp/node_state_file.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
@@ -12,12 +13,12 @@
 #include <set>
 #include <utility>
 
-#include "anyscale_agent_cpp/unique_fd.h"
+#include "anyscale_agent_cpp/own_file.h"
 
 namespace anyscale_agent
 {
 
-const char* const kNodeStates[4] = { "starting", "running", "paused", "stopping" };
+const char* const kNodeStates[4] = {"starting", "running", "paused", "stopping"};
 
 namespace
 {
@@ -32,7 +33,8 @@ NodeStateError bad(const std::string& source, const std::string& what)
   return NodeStateError("node state file " + source + ": " + what);
 }
 
-YAML::Node need(const YAML::Node& node, const char* key, const std::string& where, const std::string& source)
+YAML::Node need(const YAML::Node& node, const char* key, const std::string& where,
+                const std::string& source)
 {
   // operator[] on a const node does not insert; a missing key gives an invalid node.
   const YAML::Node found = node[key];
@@ -42,7 +44,8 @@ YAML::Node need(const YAML::Node& node, const char* key, const std::string& wher
 }
 
 template <class T>
-T scalar(const YAML::Node& node, const char* key, const std::string& where, const std::string& source)
+T scalar(const YAML::Node& node, const char* key, const std::string& where,
+         const std::string& source)
 {
   const YAML::Node v = need(node, key, where, source);
   if (!v.IsScalar())
@@ -125,19 +128,24 @@ std::string formatNodeState(const NodeState& state)
     out << YAML::EndMap;
   }
   out << YAML::EndSeq << YAML::EndMap;
-  return std::string("# AnyScale agent: the nodes it runs, for the agent's next start to adopt (see its README,\n"
-                     "# \"Agent restarts\"). Rewritten on every start, stop and exit; do not edit.\n") +
+  return std::string(
+             "# AnyScale agent: the nodes it runs, for the agent's next start to adopt (see its "
+             "README,\n"
+             "# \"Agent restarts\"). Rewritten on every start, stop and exit; do not edit.\n") +
          out.c_str() + "\n" + kTrailer;
 }
 
 NodeState parseNodeState(const std::string& text, const std::string& source)
 {
   const std::string trailer(kTrailer);
-  const std::string bare = trailer.substr(0, trailer.size() - 1);  // a lost final newline is no loss
-  const bool complete = (text.size() >= trailer.size() && text.compare(text.size() - trailer.size(), trailer.size(),
-                                                                       trailer) == 0) ||
-                        (text.size() >= bare.size() + 1 && text.compare(text.size() - bare.size(), bare.size(), bare) == 0 &&
-                         text[text.size() - bare.size() - 1] == '\n');
+  const std::string bare =
+      trailer.substr(0, trailer.size() - 1);  // a lost final newline is no loss
+  const bool complete =
+      (text.size() >= trailer.size() &&
+       text.compare(text.size() - trailer.size(), trailer.size(), trailer) == 0) ||
+      (text.size() >= bare.size() + 1 &&
+       text.compare(text.size() - bare.size(), bare.size(), bare) == 0 &&
+       text[text.size() - bare.size() - 1] == '\n');
   if (!complete)
     throw bad(source, "incomplete (it does not end with the line '" + bare + "')");
   YAML::Node root;
@@ -161,7 +169,8 @@ NodeState parseNodeState(const std::string& text, const std::string& source)
   if (!nodes.IsSequence())
     throw bad(source, "'nodes' must be a list");
   if (nodes.size() != count)
-    throw bad(source, "lists " + std::to_string(nodes.size()) + " nodes, but says " + std::to_string(count));
+    throw bad(source, "lists " + std::to_string(nodes.size()) + " nodes, but says " +
+                          std::to_string(count));
   std::set<std::string> names;
   for (std::size_t i = 0; i < nodes.size(); ++i)
   {
@@ -174,49 +183,7 @@ NodeState parseNodeState(const std::string& text, const std::string& source)
 
 bool writeNodeStateFile(const std::string& path, const NodeState& state, std::string* error)
 {
-  auto fail = [&](const std::string& what) {
-    if (error)
-      *error = what + ": " + std::strerror(errno);
-    return false;
-  };
-  const std::string text = formatNodeState(state);
-  const std::string tmp = path + ".tmp";
-  {
-    UniqueFd fd(::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644));
-    if (fd.get() < 0)
-      return fail("cannot create " + tmp);
-    for (std::size_t done = 0; done < text.size();)
-    {
-      const ssize_t n = ::write(fd.get(), text.data() + done, text.size() - done);
-      if (n < 0 && errno == EINTR)
-        continue;
-      if (n <= 0)
-      {
-        const int e = errno;
-        ::unlink(tmp.c_str());
-        errno = n == 0 ? ENOSPC : e;
-        return fail("cannot write " + tmp);
-      }
-      done += std::size_t(n);
-    }
-    // No fsync: the file must survive the agent's crash, and the page cache does. After a
-    // power loss no node survives anyway (and the boot id tells the next agent so).
-    if (::close(fd.release()) != 0)
-    {
-      const int e = errno;
-      ::unlink(tmp.c_str());
-      errno = e;
-      return fail("cannot write " + tmp);
-    }
-  }
-  if (::rename(tmp.c_str(), path.c_str()) != 0)
-  {
-    const int e = errno;
-    ::unlink(tmp.c_str());
-    errno = e;
-    return fail("cannot replace " + path);
-  }
-  return true;
+  return replaceFileAtomically(path, formatNodeState(state), error);
 }
 
 std::optional<NodeStateWriter::Staged> NodeStateWriter::stage(const NodeState& state)
@@ -224,7 +191,7 @@ std::optional<NodeStateWriter::Staged> NodeStateWriter::stage(const NodeState& s
   if (path_.empty() || (staged_last_ && *staged_last_ == state && !failed_))
     return std::nullopt;
   staged_last_ = state;
-  return Staged{ ++staged_seq_, path_, state };
+  return Staged{++staged_seq_, path_, state};
 }
 
 void NodeStateWriter::write(const Staged& staged)
@@ -264,13 +231,23 @@ std::vector<std::string> NodeStateWriter::takeNotes()
 
 std::optional<NodeState> readNodeStateFile(const std::string& path)
 {
-  UniqueFd fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC));
+  // Not through a link, not a FIFO (O_NONBLOCK: its open would wait for a writer), and only
+  // this user's own file: what it lists, the agent adopts and may signal.
+  UniqueFd fd(::open(path.c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC));
   if (fd.get() < 0)
   {
     if (errno == ENOENT)
       return std::nullopt;
+    if (errno == ELOOP)
+      throw bad(path, "is a symbolic link: not read");
     throw bad(path, std::string("cannot open: ") + std::strerror(errno));
   }
+  struct stat st;
+  if (::fstat(fd.get(), &st) != 0 || !S_ISREG(st.st_mode))
+    throw bad(path, "is not a regular file: not read");
+  if (st.st_uid != ::geteuid())
+    throw bad(path, "belongs to user " + std::to_string(st.st_uid) + ", not to the agent's (" +
+                        std::to_string(::geteuid()) + "): not read");
   std::string text;
   char buf[4096];
   for (;;)
@@ -335,20 +312,22 @@ IdentityCheck checkIdentity(const NodeStateEntry& entry, const std::optional<Pro
 {
   const std::string pid = "pid " + std::to_string(entry.pid);
   if (!stat)
-    return { Identity::Gone, "it has ended" };
+    return {Identity::Gone, "it has ended"};
   if (stat->state == 'Z' || stat->state == 'X')
-    return { Identity::Gone, "it has ended (a zombie now)" };
+    return {Identity::Gone, "it has ended (a zombie now)"};
   // The pid alone may have been handed to another process since: the start time tells them apart.
   if (stat->start_time != entry.start_time)
-    return { Identity::Gone, "it has ended; " + pid + " is another process now (started at tick " +
-                                 std::to_string(stat->start_time) + ", not " + std::to_string(entry.start_time) + ")" };
+    return {Identity::Gone, "it has ended; " + pid + " is another process now (started at tick " +
+                                std::to_string(stat->start_time) + ", not " +
+                                std::to_string(entry.start_time) + ")"};
   if (!sameCommandLine(entry.argv, cmdline))
-    return { Identity::Changed, pid + " runs another command line now (it exec'd another program); left alone" };
+    return {Identity::Changed,
+            pid + " runs another command line now (it exec'd another program); left alone"};
   // Stops signal the whole group; a process that left it could not be stopped that way.
   if (stat->pgrp != entry.pid)
-    return { Identity::Changed,
-             pid + " left its process group (now " + std::to_string(stat->pgrp) + "); left alone" };
-  return { Identity::Same, "" };
+    return {Identity::Changed,
+            pid + " left its process group (now " + std::to_string(stat->pgrp) + "); left alone"};
+  return {Identity::Same, ""};
 }
 
 }  // namespace anyscale_agent

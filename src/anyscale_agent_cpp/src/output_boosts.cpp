@@ -14,19 +14,21 @@ int OutputBoosts::boostedNice(int declared_nice) const
   return std::clamp(std::min(declared_nice, 0) + boost_nice_, -20, 19);
 }
 
-void OutputBoosts::started(const std::string& name, const std::string& publisher, int pid, int declared_nice,
-                           double tolerance_s, double now)
+void OutputBoosts::started(const std::string& name, const std::string& publisher, int pid,
+                           int declared_nice, double tolerance_s, double now)
 {
   if (!boosts())
   {
     nodes_.erase(name);
     return;
   }
-  nodes_[name] = { publisher, pid, declared_nice, late_fraction_ * std::max(tolerance_s, 0.0), -1.0, now + boost_s_ };
+  nodes_[name] = {publisher,     pid,
+                  declared_nice, late_fraction_ * std::max(tolerance_s, 0.0),
+                  -1.0,          now + boost_s_};
 }
 
-void OutputBoosts::watch(const std::string& name, const std::string& publisher, int pid, int declared_nice,
-                         double tolerance_s)
+void OutputBoosts::watch(const std::string& name, const std::string& publisher, int pid,
+                         int declared_nice, double tolerance_s)
 {
   const double late_after_s = late_fraction_ * std::max(tolerance_s, 0.0);
   if (!boosts() || late_after_s <= 0.0)
@@ -34,10 +36,11 @@ void OutputBoosts::watch(const std::string& name, const std::string& publisher, 
     nodes_.erase(name);
     return;
   }
-  nodes_[name] = { publisher, pid, declared_nice, late_after_s, -1.0, 0.0 };
+  nodes_[name] = {publisher, pid, declared_nice, late_after_s, -1.0, 0.0};
 }
 
-std::optional<OutputBoosts::Change> OutputBoosts::published(const std::string& publisher, double now)
+std::optional<OutputBoosts::Change> OutputBoosts::published(const std::string& publisher,
+                                                            double now)
 {
   for (auto it = nodes_.begin(); it != nodes_.end(); ++it)
   {
@@ -47,7 +50,7 @@ std::optional<OutputBoosts::Change> OutputBoosts::published(const std::string& p
     e.last_output = now;
     std::optional<Change> back;
     if (e.boosted_until > 0.0)
-      back = Change{ it->first, e.pid, e.declared_nice };
+      back = Change{it->first, e.pid, e.declared_nice};
     e.boosted_until = 0.0;
     if (e.late_after_s <= 0.0)
       nodes_.erase(it);
@@ -56,8 +59,8 @@ std::optional<OutputBoosts::Change> OutputBoosts::published(const std::string& p
   return std::nullopt;
 }
 
-std::vector<OutputBoosts::Change> OutputBoosts::update(double now,
-                                                       const std::function<bool(const std::string&, int)>& running)
+std::vector<OutputBoosts::Change> OutputBoosts::update(
+    double now, const std::function<bool(const std::string&, int)>& running)
 {
   std::vector<Change> changes;
   for (auto it = nodes_.begin(); it != nodes_.end();)
@@ -77,7 +80,7 @@ std::vector<OutputBoosts::Change> OutputBoosts::update(double now,
       }
       // Still silent after boost_s: a node without input or stuck gains nothing from more CPU.
       // It is watched again from its next output.
-      changes.push_back({ it->first, e.pid, e.declared_nice });
+      changes.push_back({it->first, e.pid, e.declared_nice});
       e.boosted_until = 0.0;
       e.last_output = -1.0;
       if (e.late_after_s <= 0.0)
@@ -88,7 +91,7 @@ std::vector<OutputBoosts::Change> OutputBoosts::update(double now,
     }
     else if (e.late_after_s > 0.0 && e.last_output >= 0.0 && now - e.last_output >= e.late_after_s)
     {
-      changes.push_back({ it->first, e.pid, boostedNice(e.declared_nice) });
+      changes.push_back({it->first, e.pid, boostedNice(e.declared_nice)});
       e.boosted_until = now + boost_s_;
       ++late_boosts_;
     }

@@ -25,8 +25,7 @@ XmlRpc::XmlRpcValue scalar(const YAML::Node& node, const PackageLocator& locate)
         return XmlRpc::XmlRpcValue(int(i));
     }
     catch (const std::exception&)
-    {
-    }
+    {}
     try
     {
       std::size_t used = 0;
@@ -35,8 +34,7 @@ XmlRpc::XmlRpcValue scalar(const YAML::Node& node, const PackageLocator& locate)
         return XmlRpc::XmlRpcValue(d);
     }
     catch (const std::exception&)
-    {
-    }
+    {}
     double special;
     if (parseYamlSpecialFloat(text, &special))
       return XmlRpc::XmlRpcValue(special);
@@ -48,12 +46,12 @@ XmlRpc::XmlRpcValue scalar(const YAML::Node& node, const PackageLocator& locate)
 }
 }  // namespace
 
-XmlRpc::XmlRpcValue yamlToXmlRpc(const YAML::Node& node, const PackageLocator& locate, const std::string& where)
+XmlRpc::XmlRpcValue yamlToXmlRpc(const YAML::Node& node, const PackageLocator& locate,
+                                 const std::string& where)
 {
   switch (node.Type())
   {
-    case YAML::NodeType::Scalar:
-      return scalar(node, locate);
+    case YAML::NodeType::Scalar: return scalar(node, locate);
     case YAML::NodeType::Sequence:
     {
       XmlRpc::XmlRpcValue v;
@@ -67,17 +65,17 @@ XmlRpc::XmlRpcValue yamlToXmlRpc(const YAML::Node& node, const PackageLocator& l
       XmlRpc::XmlRpcValue v;
       v.begin();  // makes an empty struct even for {}
       for (const auto& kv : node)
-        v[kv.first.as<std::string>()] = yamlToXmlRpc(kv.second, locate, where + "." + kv.first.as<std::string>());
+        v[kv.first.as<std::string>()] =
+            yamlToXmlRpc(kv.second, locate, where + "." + kv.first.as<std::string>());
       return v;
     }
-    default:
-      throw ModelError(where + ": a null or undefined value cannot be a ROS parameter");
+    default: throw ModelError(where + ": a null or undefined value cannot be a ROS parameter");
   }
 }
 
 void setNodeParams(const std::string& node_name, const YAML::Node& params,
-                   const std::map<std::string, std::string>& overrides, const PackageLocator& locate, bool clear_first,
-                   const std::string& copy_from)
+                   const std::map<std::string, std::string>& overrides,
+                   const PackageLocator& locate, bool clear_first, const std::string& copy_from)
 {
   const std::string ns = "/" + node_name;
   std::vector<std::pair<std::string, XmlRpc::XmlRpcValue>> values;
@@ -90,7 +88,8 @@ void setNodeParams(const std::string& node_name, const YAML::Node& params,
   for (const auto& [key, text] : overrides)
   {
     if (key.empty() || key[0] == '/' || key[0] == '~' || !isValidNodeName(key))
-      throw ModelError("param override " + quoted(key) + ": must be a name relative to the node, e.g. initial_pose_x");
+      throw ModelError("param override " + quoted(key) +
+                       ": must be a name relative to the node, e.g. initial_pose_x");
     if (const std::string why = checkOverrideValue(key, text); !why.empty())
       throw ModelError(why);
     YAML::Node parsed;

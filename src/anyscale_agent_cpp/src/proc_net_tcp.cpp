@@ -20,8 +20,9 @@ std::string ipv4(uint32_t host_order_word)
   // /proc prints the address as the in-memory 32-bit word, i.e. network order read as a
   // little-endian number: its lowest byte is the first octet.
   char buf[16];
-  std::snprintf(buf, sizeof buf, "%u.%u.%u.%u", host_order_word & 0xff, (host_order_word >> 8) & 0xff,
-                (host_order_word >> 16) & 0xff, (host_order_word >> 24) & 0xff);
+  std::snprintf(buf, sizeof buf, "%u.%u.%u.%u", host_order_word & 0xff,
+                (host_order_word >> 8) & 0xff, (host_order_word >> 16) & 0xff,
+                (host_order_word >> 24) & 0xff);
   return buf;
 }
 
@@ -61,10 +62,11 @@ std::vector<TcpEntry> parseProcNetTcp(const std::string& text, bool v6)
   std::string line;
   while (std::getline(in, line))
   {
-    // "  0: 0100007F:2B67 00000000:0000 0A 00000000:00000000 00:00000000 00000000  1000 0 12345 ..."
+    // "  0: 0100007F:2B67 00000000:0000 0A 00000000:00000000 00:00000000 00000000  1000 0 ..."
     std::istringstream fields(line);
     std::string slot, local, remote, state, queues, timer, retr, uid, timeout, inode;
-    if (!(fields >> slot >> local >> remote >> state >> queues >> timer >> retr >> uid >> timeout >> inode))
+    if (!(fields >> slot >> local >> remote >> state >> queues >> timer >> retr >> uid >> timeout >>
+          inode))
       continue;
     const auto colon = local.find(':');
     if (slot.empty() || slot.back() != ':' || colon != (v6 ? 32u : 8u))
@@ -72,7 +74,8 @@ std::vector<TcpEntry> parseProcNetTcp(const std::string& text, bool v6)
     try
     {
       TcpEntry e;
-      e.local = v6 ? ipv6(local.substr(0, colon)) : ipv4(uint32_t(std::stoul(local.substr(0, colon), nullptr, 16)));
+      e.local = v6 ? ipv6(local.substr(0, colon))
+                   : ipv4(uint32_t(std::stoul(local.substr(0, colon), nullptr, 16)));
       e.local_port = int(std::stoul(local.substr(colon + 1), nullptr, 16));
       if (!v6)
         e.remote = remoteFromHex(remote);

@@ -129,8 +129,7 @@ double parseCpuInfoMaxGhz(const std::string& text)
       best_mhz = std::max(best_mhz, std::stod(line.substr(colon + 1)));
     }
     catch (const std::exception&)
-    {
-    }
+    {}
   }
   return best_mhz / 1000.0;
 }

@@ -17,15 +17,15 @@ std::vector<int> threadIds(int pid)
 {
   std::vector<int> tids;
   std::error_code ec;
-  for (const auto& entry : std::filesystem::directory_iterator("/proc/" + std::to_string(pid) + "/task", ec))
+  for (const auto& entry :
+       std::filesystem::directory_iterator("/proc/" + std::to_string(pid) + "/task", ec))
   {
     try
     {
       tids.push_back(std::stoi(entry.path().filename().string()));
     }
     catch (const std::exception&)
-    {
-    }
+    {}
   }
   return tids;
 }
@@ -43,7 +43,8 @@ bool setProcessNice(int pid, int nice, std::string* error)
     // ESRCH: the thread ended meanwhile, nothing to set.
     if (::setpriority(PRIO_PROCESS, id_t(tid), nice) != 0 && errno != ESRCH)
     {
-      *error = "setpriority(" + std::to_string(tid) + ", " + std::to_string(nice) + "): " + std::strerror(errno);
+      *error = "setpriority(" + std::to_string(tid) + ", " + std::to_string(nice) +
+               "): " + std::strerror(errno);
       return false;
     }
   return true;
@@ -70,14 +71,15 @@ bool leaveIdleScheduling(int pid, std::string* error)
     *error = "process " + std::to_string(pid) + " is gone";
     return false;
   }
-  const sched_param normal{ 0 };
+  const sched_param normal{0};
   for (const int tid : tids)
   {
     if (::sched_getscheduler(tid) != SCHED_IDLE)
       continue;  // also -1 (ESRCH): the thread ended meanwhile
     if (::sched_setscheduler(tid, SCHED_OTHER, &normal) != 0 && errno != ESRCH)
     {
-      *error = "sched_setscheduler(" + std::to_string(tid) + ", SCHED_OTHER): " + std::strerror(errno);
+      *error =
+          "sched_setscheduler(" + std::to_string(tid) + ", SCHED_OTHER): " + std::strerror(errno);
       return false;
     }
   }

@@ -33,9 +33,9 @@ void IntervalStats::fill(RateStats& s, double silence_s) const
 }
 
 RateWindow::RateWindow(double window_s, std::size_t max_messages)
-  : window_s_(window_s > 0.0 ? window_s : 2.0), max_messages_(std::max<std::size_t>(max_messages, 2))
-{
-}
+  : window_s_(window_s > 0.0 ? window_s : 2.0),
+    max_messages_(std::max<std::size_t>(max_messages, 2))
+{}
 
 void RateWindow::add(double t, uint32_t bytes)
 {
@@ -58,7 +58,8 @@ RateStats RateWindow::stats(double now)
   RateStats s;
   s.window_s = window_s_;
   s.window_messages = arrivals_.size();
-  s.last_message_age_s = ever_received_ ? std::max(0.0, now - last_t_) : std::numeric_limits<double>::infinity();
+  s.last_message_age_s =
+      ever_received_ ? std::max(0.0, now - last_t_) : std::numeric_limits<double>::infinity();
   if (arrivals_.empty())
     return s;
 

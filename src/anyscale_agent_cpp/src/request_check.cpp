@@ -38,14 +38,27 @@ std::string checkSeconds(const std::string& field, double seconds, bool zero_all
   if (std::isfinite(seconds) && (zero_allowed ? seconds >= 0.0 : seconds > 0.0) && seconds <= max_s)
     return "";
   char range[96];
-  std::snprintf(range, sizeof range, "%s 0 and at most %.0f seconds", zero_allowed ? ">=" : ">", max_s);
+  std::snprintf(range, sizeof range, "%s 0 and at most %.0f seconds", zero_allowed ? ">=" : ">",
+                max_s);
   return field + " must be " + range + ", got " + std::to_string(seconds);
+}
+
+std::string checkAmount(const std::string& field, double amount, double max,
+                        const std::string& unit)
+{
+  if (std::isfinite(amount) && amount >= 0.0 && amount <= max)
+    return "";
+  char range[96];
+  std::snprintf(range, sizeof range, " must be >= 0 and at most %g %s, got ", max, unit.c_str());
+  return field + range + std::to_string(amount);
 }
 
 bool parseYamlBool(const std::string& text, bool* value)
 {
-  static const std::vector<std::string> yes{"true", "True", "TRUE", "yes", "Yes", "YES", "on", "On", "ON"};
-  static const std::vector<std::string> no{"false", "False", "FALSE", "no", "No", "NO", "off", "Off", "OFF"};
+  static const std::vector<std::string> yes{"true", "True", "TRUE", "yes", "Yes",
+                                            "YES",  "on",   "On",   "ON"};
+  static const std::vector<std::string> no{"false", "False", "FALSE", "no", "No",
+                                           "NO",    "off",   "Off",   "OFF"};
   for (const auto& y : yes)
     if (text == y)
       return *value = true, true;
@@ -60,12 +73,29 @@ bool parseYamlSpecialFloat(const std::string& text, double* value)
   static const std::vector<std::string> nan{".nan", ".NaN", ".NAN"};
   static const std::vector<std::string> inf{".inf", ".Inf", ".INF", "+.inf", "+.Inf", "+.INF"};
   static const std::vector<std::string> minus_inf{"-.inf", "-.Inf", "-.INF"};
-  for (const auto& [spellings, v] : {std::make_pair(&nan, std::nan("")), std::make_pair(&inf, HUGE_VAL),
-                                     std::make_pair(&minus_inf, -HUGE_VAL)})
+  for (const auto& [spellings, v] :
+       {std::make_pair(&nan, std::nan("")), std::make_pair(&inf, HUGE_VAL),
+        std::make_pair(&minus_inf, -HUGE_VAL)})
     for (const auto& s : *spellings)
       if (text == s)
         return *value = v, true;
   return false;
+}
+
+std::string checkOverrideKeys(const NodeDecl& decl,
+                              const std::map<std::string, std::string>& overrides)
+{
+  for (const auto& kv : overrides)
+    if (!decl.handoff_keys.count(kv.first))
+    {
+      std::string declared;
+      for (const auto& key : decl.handoff_keys)
+        declared += (declared.empty() ? "" : ", ") + key;
+      return "param override " + quoted(kv.first) +
+             ": not a parameter of the model's state hand-off of " + decl.name +
+             (declared.empty() ? " (it declares none)" : " (" + declared + ")");
+    }
+  return "";
 }
 
 std::string checkOverrideValue(const std::string& key, const std::string& yaml_text)
@@ -81,7 +111,8 @@ std::string checkOverrideValue(const std::string& key, const std::string& yaml_t
     return refused + " is not YAML: " + e.what();
   }
   if (!parsed.IsScalar() || parsed.Tag() != "?")  // "!": quoted; anything else: an explicit tag
-    return refused + " must be a number or true/false (a state hand-off), not a string, list or map";
+    return refused +
+           " must be a number or true/false (a state hand-off), not a string, list or map";
   const std::string& text = parsed.Scalar();
   double d;
   bool b;
@@ -95,8 +126,7 @@ std::string checkOverrideValue(const std::string& key, const std::string& yaml_t
       return "";
   }
   catch (const std::exception&)
-  {
-  }
+  {}
   return refused + " must be a number or true/false (a state hand-off), not a string";
 }
 

@@ -35,7 +35,8 @@ int socketFdOfInode(uint64_t inode, const std::string& fd_dir)
 
 bool breakConnection(int fd, uint64_t inode)
 {
-  struct stat st{};
+  struct stat st
+  {};
   if (fd < 0 || fstat(fd, &st) != 0 || !S_ISSOCK(st.st_mode) || uint64_t(st.st_ino) != inode)
     return false;
   // connect() with AF_UNSPEC dissolves a TCP association in any state, a SYN still unanswered

@@ -19,7 +19,8 @@ using Clock = std::chrono::steady_clock;
 
 Clock::duration seconds(double s)
 {
-  return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(std::max(0.0, s)));
+  return std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(std::max(0.0, s)));
 }
 
 bool groupExists(int pgid)
@@ -133,7 +134,8 @@ bool Supervisor::pause(const std::string& name, std::string* error)
   if (it == records_.end() || !isAlive(it->second) || it->second.info.state != ProcState::Running)
   {
     *error = "'" + name + "' is not running here" +
-             (it != records_.end() ? std::string(" (it is ") + toString(it->second.info.state) + ")" : "");
+             (it != records_.end() ? std::string(" (it is ") + toString(it->second.info.state) + ")"
+                                   : "");
     return false;
   }
   if (::kill(-it->second.group.pgid, SIGSTOP) != 0)
@@ -240,7 +242,8 @@ void Supervisor::reapLocked()
     saveStateLocked();
 }
 
-void Supervisor::recordExitLocked(const std::string& name, Record& r, int exit_code, int exit_signal)
+void Supervisor::recordExitLocked(const std::string& name, Record& r, int exit_code,
+                                  int exit_signal)
 {
   // A standby that ended was never a node, and a paused one is not the node's instance
   // in use (it runs on another scale): nothing for the node-exit handling to do.

@@ -54,8 +54,10 @@ Clock::time_point startedAt(uint64_t start_ticks)
 {
   timespec boot{};
   ::clock_gettime(CLOCK_BOOTTIME, &boot);
-  const double age = double(boot.tv_sec) + 1e-9 * double(boot.tv_nsec) - double(start_ticks) / double(::sysconf(_SC_CLK_TCK));
-  return Clock::now() - std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(std::max(0.0, age)));
+  const double age = double(boot.tv_sec) + 1e-9 * double(boot.tv_nsec) -
+                     double(start_ticks) / double(::sysconf(_SC_CLK_TCK));
+  return Clock::now() - std::chrono::duration_cast<Clock::duration>(
+                            std::chrono::duration<double>(std::max(0.0, age)));
 }
 }  // namespace
 
@@ -77,7 +79,8 @@ AdoptionReport Supervisor::adopt(const std::string& state_file)
     adoptLocked(previous, report);
   }  // the file is written here
   if (const std::string error = state_file_.error(); !error.empty())
-    report.warning += (report.warning.empty() ? "" : "; ") + error + ": a restarted agent will not find these nodes";
+    report.warning += (report.warning.empty() ? "" : "; ") + error +
+                      ": a restarted agent will not find these nodes";
   state_file_.takeNotes();  // said in the report
   return report;
 }
@@ -104,7 +107,7 @@ void Supervisor::adoptLocked(const std::optional<NodeState>& previous, AdoptionR
       r.info.log_file = e.log_file;
       r.info.started = startedAt(e.start_time);
       r.info.adopted = true;
-      r.group = Group{ e.pid, 3, Clock::time_point::max() };
+      r.group = Group{e.pid, 3, Clock::time_point::max()};
       records_[e.name] = std::move(r);
       // Paused, it was a spare (the node runs elsewhere); stopping, its end was asked for.
       if (e.state == kNodeStates[0] || e.state == kNodeStates[1])
@@ -118,7 +121,8 @@ void Supervisor::adoptLocked(const std::optional<NodeState>& previous, AdoptionR
     }
     if (const auto it = records_.find(e.name); it != records_.end() && isAlive(it->second))
     {
-      drop("a node of that name already runs here (pid " + std::to_string(it->second.info.pid) + ")");
+      drop("a node of that name already runs here (pid " + std::to_string(it->second.info.pid) +
+           ")");
       continue;
     }
     // The pidfd first, then the checks: a process that ends and whose pid is reused between
@@ -161,9 +165,9 @@ void Supervisor::adoptLocked(const std::optional<NodeState>& previous, AdoptionR
     // a SIGSTOP by one write.
     // A node the predecessor was stopping is stopped again from SIGINT: someone asked for
     // it, and its stop's progress died with the predecessor.
-    r.info.state = e.state == kNodeStates[2] || stat->state == 'T' ? ProcState::Paused :
-                   e.state == kNodeStates[0]                       ? ProcState::Starting :
-                                                                     ProcState::Running;
+    r.info.state = e.state == kNodeStates[2] || stat->state == 'T' ? ProcState::Paused
+                   : e.state == kNodeStates[0]                     ? ProcState::Starting
+                                                                   : ProcState::Running;
     if (e.state == kNodeStates[3])
       resume_stop.push_back(e.name);
     r.group = Group{e.pid, 0, Clock::time_point::max()};
@@ -190,7 +194,8 @@ void Supervisor::setLeaseEnds(const std::map<std::string, double>& lease_ends)
   StateLock lock(*this);
   bool changed = false;
   for (const auto& [name, end] : lease_ends)
-    if (auto it = records_.find(name); it != records_.end() && isAlive(it->second) && it->second.lease_end_s != end)
+    if (auto it = records_.find(name);
+        it != records_.end() && isAlive(it->second) && it->second.lease_end_s != end)
     {
       it->second.lease_end_s = end;
       changed = true;
@@ -210,7 +215,7 @@ bool Supervisor::adoptedExited(const Record& r) const
   {
     // Readable once the process has exited (zombie or reaped by its parent, init or another
     // subreaper). Its exit status goes to that parent, not to us.
-    pollfd p{ r.pidfd.get(), POLLIN, 0 };
+    pollfd p{r.pidfd.get(), POLLIN, 0};
     return ::poll(&p, 1, 0) > 0;
   }
   // No pidfd (ENOSYS): the pid with another start time is another process, ours is gone.

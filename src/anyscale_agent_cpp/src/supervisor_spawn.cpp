@@ -4,6 +4,7 @@
 
 #include <fcntl.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -38,8 +39,8 @@ void Supervisor::spawnerLoop()
   }
 }
 
-int Supervisor::start(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
-                      std::string* error)
+int Supervisor::start(const std::string& name, const std::vector<std::string>& argv,
+                      const std::string& log_file, std::string* error)
 {
   return launch(name, argv, log_file, false, error);
 }
@@ -50,8 +51,8 @@ int Supervisor::startStandby(const std::string& name, const std::vector<std::str
   return launch(name, argv, log_file, true, error);
 }
 
-int Supervisor::launch(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
-                       bool standby, std::string* error)
+int Supervisor::launch(const std::string& name, const std::vector<std::string>& argv,
+                       const std::string& log_file, bool standby, std::string* error)
 {
   StateLock lock(*this);
   auto fail = [&](const std::string& why) {
@@ -64,12 +65,22 @@ int Supervisor::launch(const std::string& name, const std::vector<std::string>& 
   auto& slots = standby ? standbys_ : records_;
   const auto existing = slots.find(name);
   if (existing != slots.end() && isAlive(existing->second))
-    return fail(std::string(standby ? "a standby of '" : "node '") + name + "' is already running here (pid " +
-                std::to_string(existing->second.info.pid) + ")");
+    return fail(std::string(standby ? "a standby of '" : "node '") + name +
+                "' is already running here (pid " + std::to_string(existing->second.info.pid) +
+                ")");
 
-  UniqueFd log(::open(log_file.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644));
+  // Not through a link, and only into a file of one name: a link planted in the log directory
+  // would have a node's output appended to any file the agent may write.
+  UniqueFd log(::open(log_file.c_str(),
+                      O_WRONLY | O_CREAT | O_APPEND | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC, 0644));
   if (log.get() < 0)
-    return fail("cannot open log file '" + log_file + "': " + std::strerror(errno));
+    return fail("cannot open log file '" + log_file +
+                "': " + (errno == ELOOP ? "it is a symbolic link" : std::strerror(errno)));
+  struct stat st;
+  if (::fstat(log.get(), &st) != 0 || !S_ISREG(st.st_mode) || st.st_nlink != 1)
+    return fail("cannot open log file '" + log_file + "': not a regular file of one name");
+  // O_NONBLOCK only kept a FIFO there from blocking the open.
+  ::fcntl(log.get(), F_SETFL, O_APPEND);
   // The child's stdin: /dev/null, or for a standby one end of a socket pair it waits on (a
   // socket, so that writing to a standby that just died gives EPIPE, not SIGPIPE).
   UniqueFd child_stdin, activation;
@@ -91,8 +102,8 @@ int Supervisor::launch(const std::string& name, const std::vector<std::string>& 
     spawn_cv_.wait(spawn_lock, [this] { return !spawn_job_; });
     bool done = false;
     spawn_job_ = [&] {
-      child_pid = spawnChild(argv, child_stdin.get(), log.get(), options_.parent_death_signal, options_.child_nice,
-                             error);
+      child_pid = spawnChild(argv, child_stdin.get(), log.get(), options_.parent_death_signal,
+                             options_.child_nice, error);
       done = true;
     };
     spawn_cv_.notify_all();
@@ -136,10 +147,12 @@ int Supervisor::activate(const std::string& name, std::string* error)
   if (it == standbys_.end() || !isAlive(it->second) || it->second.info.state != ProcState::Standby)
     return fail("no warm standby of '" + name + "' is waiting");
   if (const auto node = records_.find(name); node != records_.end() && isAlive(node->second))
-    return fail("'" + name + "' still runs here (pid " + std::to_string(node->second.info.pid) + ")");
+    return fail("'" + name + "' still runs here (pid " + std::to_string(node->second.info.pid) +
+                ")");
   Record& r = it->second;
   static const char kStart[] = "start\n";
-  if (::send(r.activation.get(), kStart, sizeof kStart - 1, MSG_NOSIGNAL) != ssize_t(sizeof kStart - 1))
+  if (::send(r.activation.get(), kStart, sizeof kStart - 1, MSG_NOSIGNAL) !=
+      ssize_t(sizeof kStart - 1))
     return fail("cannot activate the standby of '" + name + "': " + std::strerror(errno));
   r.activation.reset();  // the node sees end-of-file on stdin, as with /dev/null
   r.info.state = ProcState::Starting;

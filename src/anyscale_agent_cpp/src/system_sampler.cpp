@@ -11,10 +11,10 @@ namespace anyscale_agent
 {
 
 SystemSampler::SystemSampler(std::string proc_root, std::string cgroup_root)
-  : proc_root_(std::move(proc_root))
-  , cgroup_root_(std::move(cgroup_root))
-  , ticks_per_s_(::sysconf(_SC_CLK_TCK))
-  , page_bytes_(::sysconf(_SC_PAGESIZE))
+  : proc_root_(std::move(proc_root)),
+    cgroup_root_(std::move(cgroup_root)),
+    ticks_per_s_(::sysconf(_SC_CLK_TCK)),
+    page_bytes_(::sysconf(_SC_PAGESIZE))
 {
   const long online = ::sysconf(_SC_NPROCESSORS_ONLN);
   scale_.cores = online > 0 ? unsigned(online) : 1;
@@ -26,8 +26,7 @@ SystemSampler::SystemSampler(std::string proc_root, std::string cgroup_root)
       scale_.cpu_max_ghz = std::stod(*khz) / 1e6;
     }
     catch (const std::exception&)
-    {
-    }
+    {}
   }
   if (scale_.cpu_max_ghz <= 0.0)
     if (auto info = readFile(proc_root_ + "/cpuinfo"))
@@ -112,8 +111,7 @@ void SystemSampler::sampleQuota(const std::vector<ProcStat>& all, double elapsed
       quota = double(std::stol(*q)) / double(std::stol(*p));
   }
   catch (const std::exception&)
-  {
-  }
+  {}
   scale_.quota_cores = quota;
   if (quota <= 0.0)
     return;
@@ -138,8 +136,7 @@ void SystemSampler::sampleQuota(const std::vector<ProcStat>& all, double elapsed
       }
     }
     catch (const std::exception&)
-    {
-    }
+    {}
   }
   if (used_s < 0.0)
   {

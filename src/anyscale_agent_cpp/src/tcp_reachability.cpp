@@ -21,13 +21,15 @@ bool tcpConnects(const std::string& host, int port, double timeout_s)
   hints.ai_family = AF_UNSPEC;
   hints.ai_socktype = SOCK_STREAM;
   addrinfo* found = nullptr;
-  if (port <= 0 || port > 65535 || getaddrinfo(host.c_str(), std::to_string(port).c_str(), &hints, &found) != 0)
+  if (port <= 0 || port > 65535 ||
+      getaddrinfo(host.c_str(), std::to_string(port).c_str(), &hints, &found) != 0)
     return false;
   const std::unique_ptr<addrinfo, decltype(&freeaddrinfo)> addresses(found, &freeaddrinfo);
   const int timeout_ms = int(std::ceil(std::max(0.0, timeout_s) * 1000.0));
   for (const addrinfo* a = addresses.get(); a; a = a->ai_next)
   {
-    UniqueFd fd(::socket(a->ai_family, a->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC, a->ai_protocol));
+    UniqueFd fd(
+        ::socket(a->ai_family, a->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC, a->ai_protocol));
     if (fd.get() < 0)
       continue;
     if (::connect(fd.get(), a->ai_addr, a->ai_addrlen) == 0)

@@ -33,22 +33,23 @@ void InlineCallbackQueue::removeByID(uint64_t)
   // Nothing is ever held here.
 }
 
-TopicWatcher::TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all, bool by_bus_stats,
-                           double bus_stats_period_s, double bus_stats_timeout_s, PublisherSeen on_publisher)
-  : nh_(nh)
-  , window_s_(window_s)
-  , queue_size_(queue_size)
-  , watch_all_(watch_all)
-  , by_bus_stats_(by_bus_stats)
-  , on_publisher_(std::move(on_publisher))
+TopicWatcher::TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all,
+                           bool by_bus_stats, double bus_stats_period_s, double bus_stats_timeout_s,
+                           PublisherSeen on_publisher)
+  : nh_(nh),
+    window_s_(window_s),
+    queue_size_(queue_size),
+    watch_all_(watch_all),
+    by_bus_stats_(by_bus_stats),
+    on_publisher_(std::move(on_publisher))
 {
   nh_.setCallbackQueue(&inline_queue_);
   poller_ = std::make_unique<BusStatsPoller>(window_s, bus_stats_period_s, bus_stats_timeout_s,
                                              ros::this_node::getName(), on_publisher_);
 }
 
-bool TopicWatcher::setWatched(const std::vector<std::string>& topics, const std::vector<std::string>& subscribers,
-                              std::string* error)
+bool TopicWatcher::setWatched(const std::vector<std::string>& topics,
+                              const std::vector<std::string>& subscribers, std::string* error)
 {
   for (const auto& t : topics)
   {
@@ -67,7 +68,8 @@ bool TopicWatcher::setWatched(const std::vector<std::string>& topics, const std:
     if (!n.empty() && (n[0] != '/' || !ros::names::validate(n, why)))
     {
       if (error)
-        *error = "subscriber " + quoted(n) + " is not a fully qualified node name (e.g. /amcl) or \"\"" +
+        *error = "subscriber " + quoted(n) +
+                 " is not a fully qualified node name (e.g. /amcl) or \"\"" +
                  (why.empty() ? "" : ": " + quoted(why, 200));
       return false;
     }
@@ -91,7 +93,8 @@ void TopicWatcher::subscribe(const std::string& topic, const std::shared_ptr<Cou
 {
   std::weak_ptr<Counter> weak = c;
   boost::function<void(const ros::MessageEvent<topic_tools::ShapeShifter const>&)> cb =
-      [weak, seen = on_publisher_](const ros::MessageEvent<topic_tools::ShapeShifter const>& event) {
+      [weak,
+       seen = on_publisher_](const ros::MessageEvent<topic_tools::ShapeShifter const>& event) {
         const auto counter = weak.lock();
         if (!counter)
           return;
@@ -111,8 +114,8 @@ void TopicWatcher::subscribe(const std::string& topic, const std::shared_ptr<Cou
     std::lock_guard<std::mutex> lock(c->mutex);
     c->subscribed_at = steadyNow();
   }
-  c->sub = nh_.subscribe<topic_tools::ShapeShifter>(topic, uint32_t(queue_size_), cb, ros::VoidConstPtr(),
-                                                      ros::TransportHints().tcpNoDelay());
+  c->sub = nh_.subscribe<topic_tools::ShapeShifter>(
+      topic, uint32_t(queue_size_), cb, ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
 }
 
 void TopicWatcher::update(const std::set<std::string>& local_topics)
@@ -153,14 +156,16 @@ TopicWatcher::Plan TopicWatcher::plan() const
 {
   Plan p;
   const std::set<std::string> wanted = watched_.toCount(local_topics_, running_, watch_all_);
-  std::set<std::string> receiving;  // a paused node receives nothing: its inputs are not its to count
+  std::set<std::string>
+      receiving;  // a paused node receives nothing: its inputs are not its to count
   for (const auto& [name, node] : running_nodes_)
     if (!node.paused && node.pid > 0)
       receiving.insert(name);
-  for (const auto& [topic, name] : watched_.runningSubscribers(by_bus_stats_ ? receiving : std::set<std::string>{}))
+  for (const auto& [topic, name] :
+       watched_.runningSubscribers(by_bus_stats_ ? receiving : std::set<std::string>{}))
   {
     const RunningNode& node = running_nodes_.at(name);
-    p.polled[topic] = { node.instance, node.pid };
+    p.polled[topic] = {node.instance, node.pid};
   }
   // Still polled while refused, so that a node whose replies are good again takes its topics back.
   p.refused = poller_->refused();
@@ -198,7 +203,7 @@ void TopicWatcher::applyBus()
     std::vector<BusStatsPoller::Node> out;
     std::lock_guard<std::mutex> lock(mutex_);
     for (const auto& entry : running_nodes_)
-      out.push_back({ entry.second.instance, entry.second.pid });
+      out.push_back({entry.second.instance, entry.second.pid});
     return out;
   }());
   std::map<std::string, std::string> now;
@@ -219,17 +224,19 @@ void TopicWatcher::applyBus()
     if (now.count(topic) == 0 || now.at(topic) != node)
     {
       const auto refused = p.refused.find(topic);
-      ROS_INFO("topic counter: no longer counting %s from the bus statistics of %s (%s; %s)", topic.c_str(),
-               node.c_str(),
-               refused != p.refused.end() ? ("its replies are refused: " + refused->second).c_str() :
-                                            "it no longer runs here, or is paused",
+      ROS_INFO("topic counter: no longer counting %s from the bus statistics of %s (%s; %s)",
+               topic.c_str(), node.c_str(),
+               refused != p.refused.end() ? ("its replies are refused: " + refused->second).c_str()
+                                          : "it no longer runs here, or is paused",
                why.c_str());
     }
   for (const auto& [topic, node] : now)
     if (before.count(topic) == 0 || before.at(topic) != node)
-      ROS_INFO("topic counter: counting %s from the bus statistics of %s, a node run here that subscribes to it: "
-               "no subscription of the agent's, so the topic does not cross a link twice (%s)",
-               topic.c_str(), node.c_str(), why.c_str());
+      ROS_INFO(
+          "topic counter: counting %s from the bus statistics of %s, a node run here that "
+          "subscribes to it: "
+          "no subscription of the agent's, so the topic does not cross a link twice (%s)",
+          topic.c_str(), node.c_str(), why.c_str());
 }
 
 void TopicWatcher::apply()
@@ -264,16 +271,18 @@ void TopicWatcher::apply()
   // bring AMCL and AR home from a 27 Mbit/s link; the log could not say why.)
   for (const auto& entry : dropped)
     ROS_INFO("topic counter: stopped counting %s with a subscription (%s%s)", entry.first.c_str(),
-             p.by_bus.count(entry.first) ? "now counted from a node's bus statistics; " : "", why.c_str());
+             p.by_bus.count(entry.first) ? "now counted from a node's bus statistics; " : "",
+             why.c_str());
   for (const auto& entry : added)
   {
     const auto refused = p.refused.find(entry.first);
-    const std::string reason = refused != p.refused.end() ?
-                                   "the bus statistics of its subscriber here are refused: " + refused->second :
-                                   watch_all_ ? "~watch_all, or no node run here subscribes to it" :
-                                                "no node run here subscribes to it, a node of this host does";
-    ROS_INFO("topic counter: counting %s with a subscription of its own (%s; %s)", entry.first.c_str(),
-             reason.c_str(), why.c_str());
+    const std::string reason =
+        refused != p.refused.end()
+            ? "the bus statistics of its subscriber here are refused: " + refused->second
+        : watch_all_ ? "~watch_all, or no node run here subscribes to it"
+                     : "no node run here subscribes to it, a node of this host does";
+    ROS_INFO("topic counter: counting %s with a subscription of its own (%s; %s)",
+             entry.first.c_str(), reason.c_str(), why.c_str());
   }
   for (auto& [topic, c] : dropped)
     c->sub.shutdown();
@@ -281,7 +290,8 @@ void TopicWatcher::apply()
     subscribe(topic, c);
 }
 
-void TopicWatcher::renewSilent(double now, double silent_s, const std::function<bool()>& may_call_master)
+void TopicWatcher::renewSilent(double now, double silent_s,
+                               const std::function<bool()>& may_call_master)
 {
   std::lock_guard<std::mutex> subscribing(subscribing_);
   std::map<std::string, std::shared_ptr<Counter>> silent;
@@ -304,7 +314,8 @@ void TopicWatcher::renewSilent(double now, double silent_s, const std::function<
       // Once per silence: a topic whose publisher stopped is subscribed again every silent_s.
       std::lock_guard<std::mutex> counter_lock(c->mutex);
       if (c->last_seen >= c->subscribed_at)
-        ROS_INFO("topic counter: nothing on %s for %.1f s: subscribing again", topic.c_str(), now - c->last_seen);
+        ROS_INFO("topic counter: nothing on %s for %.1f s: subscribing again", topic.c_str(),
+                 now - c->last_seen);
     }
     // Released first: roscpp keeps one subscription per topic, and a new subscriber beside the
     // old one would only share its dead connection.

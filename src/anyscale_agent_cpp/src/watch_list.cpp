@@ -4,13 +4,14 @@
 namespace anyscale_agent
 {
 
-bool WatchList::assign(const std::vector<std::string>& topics, const std::vector<std::string>& subscribers,
-                       std::string* error)
+bool WatchList::assign(const std::vector<std::string>& topics,
+                       const std::vector<std::string>& subscribers, std::string* error)
 {
   if (!subscribers.empty() && subscribers.size() != topics.size())
   {
     if (error)
-      *error = std::to_string(subscribers.size()) + " subscribers for " + std::to_string(topics.size()) +
+      *error = std::to_string(subscribers.size()) + " subscribers for " +
+               std::to_string(topics.size()) +
                " topics: give one per topic (\"\" for none), or none at all";
     return false;
   }
@@ -25,8 +26,8 @@ bool WatchList::assign(const std::vector<std::string>& topics, const std::vector
   return true;
 }
 
-std::set<std::string> WatchList::toCount(const std::set<std::string>& graph_local, const std::set<std::string>& running,
-                                         bool watch_all) const
+std::set<std::string> WatchList::toCount(const std::set<std::string>& graph_local,
+                                         const std::set<std::string>& running, bool watch_all) const
 {
   std::set<std::string> out;
   for (const auto& [topic, subs] : subscribers_)
@@ -40,7 +41,8 @@ std::set<std::string> WatchList::toCount(const std::set<std::string>& graph_loca
   return out;
 }
 
-std::map<std::string, std::string> WatchList::runningSubscribers(const std::set<std::string>& running) const
+std::map<std::string, std::string> WatchList::runningSubscribers(
+    const std::set<std::string>& running) const
 {
   std::map<std::string, std::string> out;
   for (const auto& [topic, subs] : subscribers_)

@@ -3,7 +3,6 @@
 the same launch), its CPU % against psutil, and that it subscribes only where a local node does."""
 import os
 import sys
-import threading
 import time
 import unittest
 
@@ -57,7 +56,8 @@ class AgentAccuracyTest(unittest.TestCase):
                 ref = hz.get_hz(topic)[0]  # (rate, min, max, std, n)
                 mine = [topic_stats(s, topic).rate_hz for s in samples if topic_stats(s, topic)]
                 mean = sum(mine) / len(mine)
-                rospy.loginfo("%s: agent %.3f Hz, rostopic hz %.3f Hz, nominal %.1f", topic, mean, ref, nominal)
+                rospy.loginfo("%s: agent %.3f Hz, rostopic hz %.3f Hz, nominal %.1f",
+                              topic, mean, ref, nominal)
                 self.assertAlmostEqual(mean / ref, 1.0, delta=0.02, msg=topic)
                 # hztest checks the publisher against the nominal rate in this launch.
                 self.assertAlmostEqual(mean / nominal, 1.0, delta=0.05, msg=topic)
@@ -88,7 +88,8 @@ class AgentAccuracyTest(unittest.TestCase):
         self.assertTrue(res.success, res.message)
         try:
             self.assertTrue(wait_for(lambda: registered_pid("/" + node), 20.0))
-            self.assertTrue(wait_for(lambda: self.agent.node("/" + node).state == NodeProcess.RUNNING, 10.0))
+            self.assertTrue(wait_for(
+                lambda: self.agent.node("/" + node).state == NodeProcess.RUNNING, 10.0))
             leader = psutil.Process(res.pid)
             procs = [leader] + leader.children(recursive=True)
             time.sleep(2.0)
@@ -97,7 +98,8 @@ class AgentAccuracyTest(unittest.TestCase):
             time.sleep(5.0)
             t1, c1 = time.monotonic(), sum(sum(p.cpu_times()[:2]) for p in procs)
             reference = 100.0 * (c1 - c0) / (t1 - t0)
-            samples = [n.cpu_percent for s in self.agent.statuses[first + 1:] for n in s.nodes if n.name == "/" + node]
+            samples = [n.cpu_percent for s in self.agent.statuses[first + 1:]
+                       for n in s.nodes if n.name == "/" + node]
             self.assertGreaterEqual(len(samples), 6)
             mean = sum(samples) / len(samples)
             rospy.loginfo("%s: agent %.1f %%, psutil %.1f %% of a core", node, mean, reference)
@@ -116,8 +118,9 @@ class AgentAccuracyTest(unittest.TestCase):
         # The leader is an idle shell; the CPU is spent by its child in the same process group.
         procs = self._cpu_against_psutil("wrapped_burner")
         self.assertEqual(len(procs), 2)
-        self.assertTrue(wait_for(lambda: not any(p.is_running() and p.status() != psutil.STATUS_ZOMBIE
-                                                 for p in procs), 10.0))
+        self.assertTrue(wait_for(
+            lambda: not any(p.is_running() and p.status() != psutil.STATUS_ZOMBIE for p in procs),
+            10.0))
 
     def test_diagnostics(self):
         from diagnostic_msgs.msg import DiagnosticArray

@@ -48,13 +48,17 @@ class AgentBusStatsTest(unittest.TestCase):
     def latest(self, topic):
         return topic_stats(self.agent.statuses[-1], topic) if self.agent.statuses else None
 
+    def rate(self, topic):
+        """The topic's rate in the latest status; 0 while the status does not show it."""
+        return getattr(self.latest(topic), "rate_hz", 0.0) or 0.0
+
     def counted_from_bus(self, node, topic="/bus20", published_hz=20.0):
         res = self.agent.set_watched(topics=[topic], subscribers=["/" + node])
         self.assertTrue(res.success, res.message)
         started = self.agent.start(node=node, param_overrides=[], lease_s=0.0)
         self.assertTrue(started.success, started.message)
         try:
-            self.assertTrue(wait_for(lambda: (getattr(self.latest(topic), "rate_hz", 0.0) or 0.0) > 10.0, 20.0),
+            self.assertTrue(wait_for(lambda: self.rate(topic) > 10.0, 20.0),
                             "no rate for %s while %s runs here" % (topic, node))
             # The window fills for 2 s; then 6 s of status samples, and the subscribers meanwhile.
             time.sleep(2.5)
@@ -72,10 +76,10 @@ class AgentBusStatsTest(unittest.TestCase):
                 ages.append(t.last_message_age_s)
                 bytes_s.append(t.bytes_per_second)
             median = statistics.median(rates)
-            print("%s counted from %s's bus statistics: rate median %.3f Hz [%.3f, %.3f] over %d status samples "
-                  "(published %.1f Hz); last_message_age_s max %.3f; bytes/s median %.1f"
-                  % (topic, node, median, min(rates), max(rates), len(rates), published_hz, max(ages),
-                     statistics.median(bytes_s)))
+            print("%s counted from %s's bus statistics: rate median %.3f Hz [%.3f, %.3f] over %d "
+                  "status samples (published %.1f Hz); last_message_age_s max %.3f; bytes/s "
+                  "median %.1f" % (topic, node, median, min(rates), max(rates), len(rates),
+                                   published_hz, max(ages), statistics.median(bytes_s)))
             self.assertGreaterEqual(len(rates), 8)
             self.assertLess(abs(median - published_hz), 0.05 * published_hz)
             for r in rates:
@@ -90,14 +94,16 @@ class AgentBusStatsTest(unittest.TestCase):
     def test_roscpp_subscriber_and_a_frozen_one(self):
         pid = self.counted_from_bus("relay_bus20")
         try:
-            # Frozen: no reply to getBusStats. The status goes on at its rate, the topic's age grows.
+            # Frozen: no reply to getBusStats. The status goes on at its rate, the topic's age
+            # grows.
             os.kill(pid, signal.SIGSTOP)
             try:
                 first = len(self.agent.statuses)
                 time.sleep(3.0)
                 self.assertGreaterEqual(len(self.agent.statuses) - first, 5, "the status stalled")
                 t = self.latest("/bus20")
-                print("relay_bus20 frozen 3 s: rate %.3f Hz, last_message_age_s %.3f" % (t.rate_hz, t.last_message_age_s))
+                print("relay_bus20 frozen 3 s: rate %.3f Hz, last_message_age_s %.3f"
+                      % (t.rate_hz, t.last_message_age_s))
                 self.assertGreater(t.last_message_age_s, 1.5)
                 self.assertLess(t.rate_hz, 10.0)
                 self.assertEqual(subscribers_of("/bus20"), {"/relay_bus20"})
@@ -118,7 +124,8 @@ class AgentBusStatsTest(unittest.TestCase):
 
     def test_start_boost_ends_at_the_output_counted_from_bus_stats(self):
         if os.geteuid() != 0:
-            self.skipTest("the start boost raises a node's priority (nice -5): needs root or CAP_SYS_NICE")
+            self.skipTest("the start boost raises a node's priority (nice -5): "
+                          "needs root or CAP_SYS_NICE")
         res = self.agent.set_watched(topics=["/cpp_chatter"], subscribers=["/relay_cpp_chatter"])
         self.assertTrue(res.success, res.message)
         relay = self.agent.start(node="relay_cpp_chatter", param_overrides=[], lease_s=0.0)
@@ -129,11 +136,13 @@ class AgentBusStatsTest(unittest.TestCase):
             talker = self.agent.start(node="talker_cpp", param_overrides=[], lease_s=0.0)
             self.assertTrue(talker.success, talker.message)
             try:
-                self.assertTrue(wait_for(lambda: os.getpriority(os.PRIO_PROCESS, talker.pid) == 0, 10.0),
-                                "the talker's start boost did not end at its first output (nice %d)"
-                                % os.getpriority(os.PRIO_PROCESS, talker.pid))
-                print("talker_cpp's start boost ended %.2f s after its start" % (time.monotonic() - began))
-                self.assertTrue(wait_for(lambda: (getattr(self.latest("/cpp_chatter"), "rate_hz", 0.0)) > 15.0, 10.0))
+                self.assertTrue(
+                    wait_for(lambda: os.getpriority(os.PRIO_PROCESS, talker.pid) == 0, 10.0),
+                    "the talker's start boost did not end at its first output (nice %d)"
+                    % os.getpriority(os.PRIO_PROCESS, talker.pid))
+                print("talker_cpp's start boost ended %.2f s after its start"
+                      % (time.monotonic() - began))
+                self.assertTrue(wait_for(lambda: self.rate("/cpp_chatter") > 15.0, 10.0))
                 self.assertEqual(subscribers_of("/cpp_chatter"), {"/relay_cpp_chatter"})
             finally:
                 self.agent.stop(node="talker_cpp", wait=True)
@@ -142,7 +151,8 @@ class AgentBusStatsTest(unittest.TestCase):
 
     def test_a_late_output_is_boosted_until_its_next_message(self):
         if os.geteuid() != 0:
-            self.skipTest("the late boost raises a node's priority (nice -5): needs root or CAP_SYS_NICE")
+            self.skipTest("the late boost raises a node's priority (nice -5): "
+                          "needs root or CAP_SYS_NICE")
         res = self.agent.set_watched(topics=["/late_chatter"], subscribers=["/relay_late_chatter"])
         self.assertTrue(res.success, res.message)
         relay = self.agent.start(node="relay_late_chatter", param_overrides=[], lease_s=0.0)
@@ -151,22 +161,29 @@ class AgentBusStatsTest(unittest.TestCase):
             self.assertTrue(wait_for(lambda: self.latest("/late_chatter") is not None, 10.0))
             talker = self.agent.start(node="late_talker", param_overrides=[], lease_s=0.0)
             self.assertTrue(talker.success, talker.message)
-            nice = lambda: os.getpriority(os.PRIO_PROCESS, talker.pid)  # noqa: E731
+
+            def nice():
+                return os.getpriority(os.PRIO_PROCESS, talker.pid)
+
             try:
                 self.assertTrue(wait_for(lambda: nice() == 5, 10.0),
-                                "the start boost did not end at the first output (nice %d)" % nice())
+                                "the start boost did not end at the first output (nice %d)"
+                                % nice())
                 time.sleep(1.0)
                 self.assertEqual(nice(), 5, "boosted while it published at 10 Hz")
                 # Silent for longer than half its tolerance of 1 s: raised while still silent.
                 os.kill(talker.pid, signal.SIGSTOP)
                 try:
                     frozen = time.monotonic()
-                    self.assertTrue(wait_for(lambda: nice() == -5, 3.0), "not boosted while silent (nice %d)" % nice())
-                    print("late_talker boosted %.2f s into its silence" % (time.monotonic() - frozen))
+                    self.assertTrue(wait_for(lambda: nice() == -5, 3.0),
+                                    "not boosted while silent (nice %d)" % nice())
+                    print("late_talker boosted %.2f s into its silence"
+                          % (time.monotonic() - frozen))
                     self.assertGreaterEqual(time.monotonic() - frozen, 0.5)
                 finally:
                     os.kill(talker.pid, signal.SIGCONT)
-                self.assertTrue(wait_for(lambda: nice() == 5, 3.0), "the boost did not end at its next message")
+                self.assertTrue(wait_for(lambda: nice() == 5, 3.0),
+                                "the boost did not end at its next message")
             finally:
                 self.agent.stop(node="late_talker", wait=True)
         finally:

@@ -32,14 +32,15 @@ class AgentExitStatusTest(unittest.TestCase):
         for attempt in range(2):
             res = self.agent.start(node="talker_cpp", param_overrides=[], lease_s=0.0)
             self.assertTrue(res.success, res.message)
-            self.assertTrue(wait_for(lambda: self.agent.node("/talker_cpp").state == NodeProcess.RUNNING,
-                                     20.0))
+            self.assertTrue(wait_for(
+                lambda: self.agent.node("/talker_cpp").state == NodeProcess.RUNNING, 20.0))
             # Right after a periodic sample: the next is 2 s away.
             seen = len(self.agent.statuses)
             self.assertTrue(wait_for(lambda: len(self.agent.statuses) > seen, 5.0))
             killed_at = time.monotonic()
             os.kill(res.pid, signal.SIGSEGV)
-            first = wait_for(lambda: next((time.monotonic() for s in list(self.agent.statuses)[seen:]
+            first = wait_for(lambda: next((time.monotonic()
+                                           for s in list(self.agent.statuses)[seen:]
                                            if shows_exited(s, "/talker_cpp")), None), 5.0)
             self.assertIsNotNone(first, "no status showed the crash")
             self.assertLess(first - killed_at, WITHIN_S, f"attempt {attempt + 1}")

@@ -24,7 +24,8 @@ PWNED = "/tmp/anyscale_pwned_%d" % os.getpid()
 HOSTILE = settings(max_examples=50, deadline=None, derandomize=True)
 FLOATS = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=32),
                    st.sampled_from([-1.0, 3e9, 3.4e38, math.nan, math.inf, -math.inf]))
-NAMES = st.one_of(st.text(max_size=40), st.sampled_from(["", "x" * 100000, "n\u00f6d\u00e9", "a\nb"]))
+NAMES = st.one_of(st.text(max_size=40),
+                  st.sampled_from(["", "x" * 100000, "n\u00f6d\u00e9", "a\nb"]))
 
 
 def proc_usage(pid):
@@ -56,24 +57,27 @@ class AgentSecurityTest(unittest.TestCase):
             with cls.lock:
                 cls.logs.append(msg.msg)
 
-    def _start(self, node, overrides=(), lease_s=0.0):
+    def _start(self, node, overrides=(), lease_s=0.0, cpu_percent=0.0, memory_mb=0.0):
         kv = [KeyValue(key=k, value=v) for k, v in overrides]
-        return self.agent.start(node=node, param_overrides=kv, lease_s=lease_s)
+        return self.agent.start(node=node, param_overrides=kv, lease_s=lease_s,
+                                cpu_percent=cpu_percent, memory_mb=memory_mb)
 
     def _refusal_logged(self, service, fragment):
+        prefix = "%s from caller '%s'" % (service, self.caller)
+
         def found():
             with self.lock:
-                return [m for m in self.logs if m.startswith("%s from caller '%s'" % (service, self.caller))
-                        and fragment in m]
+                return [m for m in self.logs if m.startswith(prefix) and fragment in m]
         lines = wait_for(found, 10.0)
         self.assertTrue(lines, "no log line of %s naming the caller %s and %r in %d lines, last %s"
                         % (service, self.caller, fragment, len(self.logs), self.logs[-2:]))
         self.assertTrue(all("\n" not in m and len(m) < 2000 for m in lines), lines)
 
     def test_attacks_on_the_allow_list_are_refused_and_logged_with_the_caller(self):
-        undeclared = ["teleop", "../talker_py", "talker_py/../../bin/sh", "/bin/sh", "talker_py__laptop",
-                      "talker_py; touch " + PWNED, "$(touch %s)" % PWNED, "`touch %s`" % PWNED,
-                      "talker_py\n[ WARN] forged line", "", "x" * 100000, "n\u00f6d\u00e9"]
+        undeclared = ["teleop", "../talker_py", "talker_py/../../bin/sh", "/bin/sh",
+                      "talker_py__laptop", "talker_py; touch " + PWNED, "$(touch %s)" % PWNED,
+                      "`touch %s`" % PWNED, "talker_py\n[ WARN] forged line", "", "x" * 100000,
+                      "n\u00f6d\u00e9"]
         for node in undeclared:
             res = self._start(node)
             self.assertEqual((res.success, res.pid), (False, 0), node[:80])
@@ -82,28 +86,36 @@ class AgentSecurityTest(unittest.TestCase):
         self._refusal_logged("start_node", "'talker_py\\x0a[ WARN] forged line'")
         self._refusal_logged("start_node", "(100000 bytes)")
         # A declared node with overrides that point at something else: refused before anything runs.
-        for key, value in [("cmd", "/bin/sh"), ("map_file", "$(find anyscale_agent_cpp)/../../bin/sh"),
-                           ("plugin", "{command: /bin/sh}"), ("argv", "['-c', 'touch %s']" % PWNED),
-                           ("__name", "1"), ("../../rosdistro", "1"), ("/run_id", "1"), ("~x", "1"),
-                           ("rate", "!!python/object/apply:os.system ['touch %s']" % PWNED)]:
+        # Keys outside the model's state hand-off (talker_py's: a pose), and hand-off keys with
+        # values that are no number.
+        pose = "initial_pose_x"
+        for key, value in [("cmd", "1"), ("__name", "1"), ("../../rosdistro", "1"),
+                           ("/run_id", "1"), ("~x", "1"), (pose, "/bin/sh"),
+                           (pose, "$(find anyscale_agent_cpp)/../../bin/sh"),
+                           (pose, "{command: /bin/sh}"), (pose, "['-c', 'touch %s']" % PWNED),
+                           (pose, "!!python/object/apply:os.system ['touch %s']" % PWNED)]:
             res = self._start("talker_py", overrides=[(key, value)])
             self.assertEqual((res.success, res.pid), (False, 0), (key, value, res.message))
             self.assertIn("param override", res.message)
+        self._refusal_logged("start_node", "not a parameter of the model's state hand-off")
         self._refusal_logged("start_node", "must be a number or true/false")
         self.assertIsNone(registered_pid("/talker_py"))
         self.assertFalse(os.path.exists(PWNED), "a request ran a command")
 
     def test_a_started_node_runs_exactly_what_the_model_declares(self):
-        res = self._start("talker_py", overrides=[("rate", "5.0")])
+        res = self._start("talker_py", overrides=[("initial_pose_x", "5.0")])
         self.assertTrue(res.success, res.message)
         try:
             with open("/proc/%d/cmdline" % res.pid, "rb") as f:
                 argv = [a.decode() for a in f.read().split(b"\0") if a]
-            # The interpreter runs the declared script with the model's remap and name, nothing else.
+            # The interpreter runs the declared script with the model's remap and name, nothing
+            # else.
             script = next(i for i, a in enumerate(argv) if a.endswith("/talker.py"))
             self.assertEqual(argv[script + 1:], ["chatter:=/py_chatter", "__name:=talker_py"])
-            self.assertEqual(environ(res.pid), environ(self.agent_pid), "a request changed the environment")
-            self.assertEqual(os.readlink("/proc/%d/cwd" % res.pid), os.readlink("/proc/%d/cwd" % self.agent_pid))
+            self.assertEqual(environ(res.pid), environ(self.agent_pid),
+                             "a request changed the environment")
+            self.assertEqual(os.readlink("/proc/%d/cwd" % res.pid),
+                             os.readlink("/proc/%d/cwd" % self.agent_pid))
         finally:
             self.agent.stop(node="talker_py", wait=True)
 
@@ -114,7 +126,7 @@ class AgentSecurityTest(unittest.TestCase):
             self.assertEqual((res.success, res.pid), (False, 0), (lease, res.message))
             self.assertIn("lease_s", res.message)
         self._refusal_logged("start_node", "lease_s must be")
-        res = self._start("talker_cpp", lease_s=5.0)
+        res = self._start("talker_cpp")
         self.assertTrue(res.success, res.message)
         try:
             for lease in (3e9, math.nan, 0.0, -5.0):
@@ -131,10 +143,23 @@ class AgentSecurityTest(unittest.TestCase):
             self.agent.stop(node="talker_cpp", wait=True)
 
     @HOSTILE
-    @given(NAMES, FLOATS, st.lists(st.tuples(NAMES, NAMES), max_size=3))
-    def test_hostile_start_requests(self, node, lease, overrides):
-        res = self._start(node, overrides, lease)
+    @given(NAMES, FLOATS, st.lists(st.tuples(NAMES, NAMES), max_size=3), FLOATS, FLOATS)
+    def test_hostile_start_requests(self, node, lease, overrides, cpu, memory):
+        res = self._start(node, overrides, lease, cpu, memory)
         self.assertEqual((res.success, res.pid), (False, 0), res.message)
+
+    def test_expected_cpu_and_memory_out_of_range_are_refused(self):
+        for field in ("cpu_percent", "memory_mb"):
+            for bad in (math.nan, math.inf, -1.0, 3.4e38):
+                res = self._start("talker_cpp", **{field: bad})
+                self.assertEqual((res.success, res.pid), (False, 0), (field, bad, res.message))
+                self.assertIn(field + " must be >= 0", res.message)
+        self._refusal_logged("start_node", "cpu_percent must be >= 0")
+        # Without a ledger they are not held anywhere: a large figure starts as any other.
+        res = self._start("talker_cpp", cpu_percent=250.0, memory_mb=1e6)
+        self.assertTrue(res.success, res.message)
+        self.assertFalse(res.scale_full)
+        self.agent.stop(node="talker_cpp", wait=True)
 
     @HOSTILE
     @given(NAMES, FLOATS, st.booleans(), st.lists(NAMES, max_size=5))
@@ -156,7 +181,8 @@ class AgentSecurityTest(unittest.TestCase):
             self.assertFalse(res.success)
             self.assertIn("at most 1000", res.message)
         self.assertTrue(self.agent.set_watched(topics=["/t%d" % i for i in range(1000)]).success)
-        self.assertTrue(self.agent.renew(nodes=["ghost"] * 20000, lease_s=1.0).message.endswith("19990 more"))
+        renewed = self.agent.renew(nodes=["ghost"] * 20000, lease_s=1.0)
+        self.assertTrue(renewed.message.endswith("19990 more"), renewed.message)
         flood_s = time.monotonic() - began
         start.close()
         rss1, cpu1 = proc_usage(self.agent_pid)
@@ -172,8 +198,9 @@ class AgentSecurityTest(unittest.TestCase):
         self.assertTrue(res.success, res.message)
         self.assertEqual(wait_for(lambda: registered_pid("/talker_cpp"), 20.0), res.pid)
         self.assertTrue(self.agent.stop(node="talker_cpp", wait=True).success)
-        print("flood: 1500 refused starts, watch lists of 5000 and 100000, renew of 20000 in %.1f s; "
-              "agent RSS %+.1f MB, CPU %.1f s" % (flood_s, (rss1 - rss0) / 1e6, cpu1 - cpu0))
+        print("flood: 1500 refused starts, watch lists of 5000 and 100000, renew of 20000 in "
+              "%.1f s; agent RSS %+.1f MB, CPU %.1f s"
+              % (flood_s, (rss1 - rss0) / 1e6, cpu1 - cpu0))
 
 
 if __name__ == "__main__":

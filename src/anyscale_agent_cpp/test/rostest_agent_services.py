@@ -17,6 +17,7 @@ from diagnostic_msgs.msg import KeyValue
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from agent_test_util import Agent, registered_pid, wait_for  # noqa: E402
 
+
 def alive(pid):
     """True while the process exists and is not a zombie waiting for a reaper."""
     try:
@@ -54,10 +55,11 @@ class AgentServicesTest(unittest.TestCase):
             self.assertTrue(res.success, res.message)
             # Registered with the master under its own name, by the process the agent started.
             self.assertEqual(wait_for(lambda: registered_pid("/" + node), 20.0), res.pid, node)
-            self.assertTrue(wait_for(lambda: self.agent.node("/" + node).state == NodeProcess.RUNNING, 10.0))
+            self.assertTrue(wait_for(
+                lambda: self.agent.node("/" + node).state == NodeProcess.RUNNING, 10.0))
             info = self.agent.node("/" + node)
             self.assertTrue(os.path.exists(info.log_file), info.log_file)
-            again = self._start(node)                     # already running: its pid, no second process
+            again = self._start(node)  # already running: its pid, no second process
             self.assertEqual((again.success, again.pid), (True, res.pid), again.message)
             stop = self.agent.stop(node=node, wait=True)
             self.assertTrue(stop.success, stop.message)
@@ -71,7 +73,8 @@ class AgentServicesTest(unittest.TestCase):
         res = self._start("talker_py")
         self.assertTrue(res.success, res.message)
         try:
-            self.assertTrue(wait_for(lambda: self.agent.node("/talker_py").state == NodeProcess.RUNNING, 20.0))
+            self.assertTrue(wait_for(
+                lambda: self.agent.node("/talker_py").state == NodeProcess.RUNNING, 20.0))
             rospy.wait_for_message("/py_chatter", String, timeout=FIRST_MESSAGE_S)
             paused = self.agent.stop(node="talker_py", wait=True, pause=True)
             self.assertTrue(paused.success, paused.message)
@@ -101,11 +104,14 @@ class AgentServicesTest(unittest.TestCase):
         self.assertTrue(wait_for(lambda: registered_pid("/talker_py") is None, 5.0))
 
     def test_params_remaps_and_overrides(self):
-        res = self._start("talker_py", overrides=[("rate", "7.5"), ("extra", "2")])
+        # The model declares talker_py's state hand-off a pose: those are the overrides it takes.
+        res = self._start("talker_py",
+                          overrides=[("initial_pose_x", "7.5"), ("initial_pose_a", "2")])
         self.assertTrue(res.success, res.message)
         try:
-            self.assertEqual(rospy.get_param("/talker_py/rate"), 7.5)
-            self.assertEqual(rospy.get_param("/talker_py/extra"), 2)
+            self.assertEqual(rospy.get_param("/talker_py/initial_pose_x"), 7.5)
+            self.assertEqual(rospy.get_param("/talker_py/initial_pose_a"), 2)
+            self.assertEqual(rospy.get_param("/talker_py/rate"), 20.0)
             # $(find) substituted as roslaunch does.
             self.assertTrue(rospy.get_param("/talker_py/text").endswith("anyscale_agent_cpp"))
             self.assertTrue(wait_for(lambda: registered_pid("/talker_py"), 20.0))
@@ -119,7 +125,7 @@ class AgentServicesTest(unittest.TestCase):
         res = self._start("talker_py")
         try:
             self.assertEqual(rospy.get_param("/talker_py/rate"), 20.0)
-            self.assertFalse(rospy.has_param("/talker_py/extra"))
+            self.assertFalse(rospy.has_param("/talker_py/initial_pose_x"))
         finally:
             self.agent.stop(node="talker_py", wait=True)
 
@@ -142,7 +148,7 @@ class AgentServicesTest(unittest.TestCase):
         self.assertIn("lease_s", res.message)
         res = self._start("talker_py", overrides=[("/abs", "1")])
         self.assertFalse(res.success)
-        self.assertIn("relative to the node", res.message)
+        self.assertIn("not a parameter of the model's state hand-off", res.message)
         self.assertIsNone(registered_pid("/talker_py"))
         stop = self.agent.stop(node="teleop", wait=True)
         self.assertFalse(stop.success)
@@ -169,12 +175,14 @@ class AgentServicesTest(unittest.TestCase):
         self.assertEqual(first_start.pid, standby.pid)
         self.assertEqual(wait_for(lambda: registered_pid("/warm_talker"), 20.0), first_start.pid)
         from std_msgs.msg import String
-        rospy.wait_for_message("/warm_chatter", String, timeout=FIRST_MESSAGE_S)   # its remap in effect
+        # Published on /warm_chatter: the node's remap is in effect.
+        rospy.wait_for_message("/warm_chatter", String, timeout=FIRST_MESSAGE_S)
         # ~standby_delay_s (2 s) after the node's start, the next standby waits beside it.
         next_standby = wait_for(lambda: self._standby("/warm_talker"), 15.0)
         self.assertTrue(next_standby, "no new standby while the node runs")
         self.assertNotEqual(next_standby.pid, first_start.pid)
-        self.assertEqual(self.agent.node("/warm_talker").pid, first_start.pid)  # the node is listed first
+        # The node is listed before its standby.
+        self.assertEqual(self.agent.node("/warm_talker").pid, first_start.pid)
         stop = self.agent.stop(node="warm_talker", wait=True)
         self.assertTrue(stop.success, stop.message)
         self.assertFalse(alive(first_start.pid))
@@ -201,26 +209,6 @@ class AgentServicesTest(unittest.TestCase):
                         "the standby of a node that crashed here still imports in SCHED_IDLE")
         self.agent.stop(node="warm_talker", wait=True)
 
-    def test_lease_renewed_keeps_running_then_expires(self):
-        res = self._start("talker_cpp", lease_s=2.0)
-        self.assertTrue(res.success, res.message)
-        try:
-            self.assertGreater(self.agent.node("/talker_cpp").lease_expiry.to_sec(), 0.0)
-            for _ in range(4):  # 4 s of renewals past a 2 s lease
-                time.sleep(1.0)
-                r = self.agent.renew(nodes=["talker_cpp"], lease_s=2.0)
-                self.assertTrue(r.success, r.message)
-            self.assertTrue(alive(res.pid))
-            bad = self.agent.renew(nodes=["talker_cpp", "ghost"], lease_s=2.0)
-            self.assertFalse(bad.success)
-            self.assertEqual(bad.not_running, ["ghost"])
-            # No more renewals: stopped by the agent itself.
-            self.assertTrue(wait_for(lambda: self.agent.node("/talker_cpp").state == NodeProcess.LEASE_EXPIRED, 10.0))
-            self.assertTrue(wait_for(lambda: not alive(res.pid), 5.0))
-            self.assertTrue(wait_for(lambda: registered_pid("/talker_cpp") is None, 5.0))
-        finally:
-            self.agent.stop(node="talker_cpp", wait=True)
-
     def test_agent_shutdown_leaves_no_process(self):
         for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
             scale = "shutdown_%d" % sig
@@ -243,8 +231,9 @@ class AgentServicesTest(unittest.TestCase):
                 children = [c.pid for p in pids for c in psutil.Process(p).children(recursive=True)]
                 agent_proc.send_signal(sig)
                 agent_proc.wait(timeout=30)
-                self.assertTrue(wait_for(lambda: not any(alive(p) for p in pids + children), 15.0),
-                                "signal %d left %s" % (sig, [p for p in pids + children if alive(p)]))
+                self.assertTrue(
+                    wait_for(lambda: not any(alive(p) for p in pids + children), 15.0),
+                    "signal %d left %s" % (sig, [p for p in pids + children if alive(p)]))
             finally:
                 if agent_proc.poll() is None:
                     agent_proc.kill()
@@ -257,8 +246,8 @@ class AgentServicesTest(unittest.TestCase):
         state_file = "/tmp/anyscale_agent_test_restart_%d.yaml" % os.getpid()
         self.addCleanup(lambda: os.path.exists(state_file) and os.remove(state_file))
         command = [self._agent_binary(), "__name:=anyscale_agent_" + scale, "_scale:=" + scale,
-                   "_is_master:=true", "_model:=" + MODEL, "_sigint_timeout_s:=3.0", "_warm_start:=false",
-                   "_state_file:=" + state_file]
+                   "_is_master:=true", "_model:=" + MODEL, "_sigint_timeout_s:=3.0",
+                   "_warm_start:=false", "_state_file:=" + state_file]
 
         def listed(agent, name):
             try:
@@ -279,10 +268,11 @@ class AgentServicesTest(unittest.TestCase):
             time.sleep(1.0)
             self.assertTrue(alive(pid), "a node of the master scale died with its agent")
 
-            agents.append(subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+            agents.append(subprocess.Popen(command, stdout=subprocess.DEVNULL,
+                                           stderr=subprocess.DEVNULL))
             second = Agent(scale)
-            node = wait_for(lambda: (n := listed(second, "/talker_cpp")) and n.state == NodeProcess.RUNNING and n,
-                            20.0)
+            node = wait_for(lambda: (n := listed(second, "/talker_cpp"))
+                            and n.state == NodeProcess.RUNNING and n, 20.0)
             self.assertTrue(node, "not adopted")
             self.assertEqual(node.pid, pid)
             again = second.start(node="talker_cpp", param_overrides=[], lease_s=0.0)
@@ -307,11 +297,13 @@ class AgentServicesTest(unittest.TestCase):
         with open(bad_name, "w") as f:
             f.write("nodes: [{name: x, launch: {package: p, type: ../../bin/sh}}]\n")
         self.addCleanup(os.remove, bad_name)
-        for model, expected in (("/nonexistent/model.yaml", "/nonexistent/model.yaml: cannot read YAML"),
-                                (no_nodes, no_nodes + ": expected a map with a 'nodes' list"),
-                                (bad_name, bad_name + ": node 'x': launch.type '../../bin/sh' must be")):
-            proc = subprocess.run([self._agent_binary(), "__name:=anyscale_agent_bad", "_scale:=bad",
-                                   "_model:=" + model], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        cases = (("/nonexistent/model.yaml", "/nonexistent/model.yaml: cannot read YAML"),
+                 (no_nodes, no_nodes + ": expected a map with a 'nodes' list"),
+                 (bad_name, bad_name + ": node 'x': launch.type '../../bin/sh' must be"))
+        for model, expected in cases:
+            proc = subprocess.run([self._agent_binary(), "__name:=anyscale_agent_bad",
+                                   "_scale:=bad", "_model:=" + model],
+                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                   timeout=30, text=True)
             self.assertEqual(proc.returncode, 1, proc.stdout)
             self.assertIn(expected, proc.stdout)

@@ -24,7 +24,7 @@ class AgentWatchListTest(unittest.TestCase):
         cls.agent = Agent("robot")
 
     def test_the_input_of_a_node_run_here_is_counted_without_the_graph(self):
-        res = self.agent.set_watched(topics=["/hz10", "/unread"], subscribers=["/relay_hz10", "/nobody"])
+        res = self.agent.set_watched(topics=["/hz10", "/unread"], subscribers=["/relay_hz10", ""])
         self.assertTrue(res.success, res.message)
         self.assertTrue(wait_for(lambda: self.agent.statuses, 10.0))
         self.assertIsNone(rate_of(self.agent.statuses[-1], "/hz10"))   # nothing here reads it yet
@@ -32,8 +32,9 @@ class AgentWatchListTest(unittest.TestCase):
         self.assertTrue(started.success, started.message)
         try:
             # The renewal thread runs about once a second; the 2 s window then fills.
-            self.assertTrue(wait_for(lambda: (rate_of(self.agent.statuses[-1], "/hz10") or 0.0) > 5.0, 15.0),
-                            "no rate for /hz10 while its subscriber runs here")
+            self.assertTrue(
+                wait_for(lambda: (rate_of(self.agent.statuses[-1], "/hz10") or 0.0) > 5.0, 15.0),
+                "no rate for /hz10 while its subscriber runs here")
             self.assertIsNone(rate_of(self.agent.statuses[-1], "/unread"))
         finally:
             self.agent.stop(node="relay_hz10", wait=True)

@@ -89,8 +89,8 @@ inline bool groupStopped(int pgid)
     const std::string name = entry.path().filename();
     if (name.find_first_not_of("0123456789") != std::string::npos)
       continue;
-    const auto stat =
-        anyscale_agent::parseProcStat(anyscale_agent::readFile(entry.path().string() + "/stat").value_or(""));
+    const auto stat = anyscale_agent::parseProcStat(
+        anyscale_agent::readFile(entry.path().string() + "/stat").value_or(""));
     if (stat && stat->pgrp == pgid)
       members.push_back(*stat);
   }
@@ -111,7 +111,8 @@ inline std::vector<std::string> sh(const std::string& script)
   return {"/bin/sh", "-c", script};
 }
 
-inline bool waitUntil(const std::function<bool()>& cond, double timeout_s, anyscale_agent::Supervisor& s)
+inline bool waitUntil(const std::function<bool()>& cond, double timeout_s,
+                      anyscale_agent::Supervisor& s)
 {
   const auto end = Clock::now() + std::chrono::duration<double>(timeout_s);
   while (Clock::now() < end)

@@ -1,4 +1,5 @@
-// gtest: rates from cumulative bus statistics counts, listening sockets in /proc, the nodes counted from.
+// gtest: rates from cumulative bus statistics counts, listening sockets in /proc, the nodes
+// counted from.
 #include <gtest/gtest.h>
 
 #include <arpa/inet.h>
@@ -22,18 +23,19 @@ namespace
 {
 
 // Counts of a steady stream of `hz` on one connection, as a node would report them at `t`.
-std::vector<ConnectionCount> steady(double hz, double t, int id = 0, uint32_t bytes_each = 100, double phase = 0.0)
+std::vector<ConnectionCount> steady(double hz, double t, int id = 0, uint32_t bytes_each = 100,
+                                    double phase = 0.0)
 {
   const uint32_t n = uint32_t(std::floor(hz * t + phase));
-  return { { id, n * bytes_each, n } };
+  return {{id, n * bytes_each, n}};
 }
 
 }  // namespace
 
 TEST(BusStatsRate, SteadyStreamPolledAtAQuarterSecond)
 {
-  for (double hz : { 1.0, 5.0, 10.0, 20.0, 30.0, 100.0 })
-    for (double phase : { 0.0, 0.3, 0.7 })
+  for (double hz : {1.0, 5.0, 10.0, 20.0, 30.0, 100.0})
+    for (double phase : {0.0, 0.3, 0.7})
     {
       BusStatsRate r(2.0, 0.75);
       double t = 10.0;
@@ -46,7 +48,8 @@ TEST(BusStatsRate, SteadyStreamPolledAtAQuarterSecond)
       const auto s = r.stats(t + 0.1);
       // The count of a poll says nothing of when in the period the messages came: about one
       // message per window of error at worst, far less at most phases.
-      EXPECT_NEAR(s.rate_hz, hz, std::max(0.1 * hz, 0.5 * hz / (2.0 * hz - 1.0))) << hz << " Hz, phase " << phase;
+      EXPECT_NEAR(s.rate_hz, hz, std::max(0.1 * hz, 0.5 * hz / (2.0 * hz - 1.0)))
+          << hz << " Hz, phase " << phase;
       EXPECT_NEAR(s.bytes_per_second, 100.0 * hz, 100.0 * (1.0 / 2.0 + 0.05 * hz)) << hz;
       EXPECT_LT(s.last_message_age_s, std::max(1.0 / hz, 0.25) + 0.01) << hz;
       EXPECT_GT(s.window_messages, 0u);
@@ -56,7 +59,7 @@ TEST(BusStatsRate, SteadyStreamPolledAtAQuarterSecond)
 TEST(BusStatsRate, FirstReplyIsABaselineNotABurst)
 {
   BusStatsRate r(2.0, 0.75);
-  r.add(1.0, 100, { { 0, 1000000, 50000 } });  // a node that has run for an hour
+  r.add(1.0, 100, {{0, 1000000, 50000}});  // a node that has run for an hour
   const auto s = r.stats(1.1);
   EXPECT_EQ(s.rate_hz, 0.0);
   EXPECT_EQ(s.window_messages, 0u);
@@ -67,22 +70,22 @@ TEST(BusStatsRate, ConnectionsComingAndGoing)
 {
   BusStatsRate r(2.0, 0.75);
   double t = 0.0;
-  r.add(t, 100, { { 0, 0, 0 } });
+  r.add(t, 100, {{0, 0, 0}});
   uint32_t a = 0, b = 0;
   for (int i = 1; i <= 8; ++i)  // 10 Hz on connection 0
   {
     t += 0.25;
     a = uint32_t(i * 10 / 4);
-    r.add(t, 100, { { 0, a * 10, a } });
+    r.add(t, 100, {{0, a * 10, a}});
   }
   // The publisher reconnects: connection 0 is gone, connection 1 is new and counts from 0.
   for (int i = 1; i <= 8; ++i)
   {
     t += 0.25;
     b = uint32_t(i * 10 / 4);
-    const auto grew = r.add(t, 100, { { 1, b * 10, b } });
+    const auto grew = r.add(t, 100, {{1, b * 10, b}});
     if (i % 2 == 0 || b > 0)
-      EXPECT_TRUE(grew.empty() || grew == std::vector<int>{ 1 });
+      EXPECT_TRUE(grew.empty() || grew == std::vector<int>{1});
   }
   auto s = r.stats(t);
   EXPECT_NEAR(s.rate_hz, 10.0, 1.0);
@@ -93,7 +96,7 @@ TEST(BusStatsRate, ConnectionsComingAndGoing)
     t += 0.25;
     b += 2;  // 8 Hz
     c += 3;  // 12 Hz
-    const auto grew = r.add(t, 100, { { 1, b * 10, b }, { 2, c * 10, c } });
+    const auto grew = r.add(t, 100, {{1, b * 10, b}, {2, c * 10, c}});
     EXPECT_EQ(grew.size(), 2u);
   }
   s = r.stats(t);
@@ -106,24 +109,24 @@ TEST(BusStatsRate, ARestartedNodeCountsFromZeroAgain)
   BusStatsRate r(2.0, 0.75);
   double t = 0.0;
   uint32_t n = 1000;
-  r.add(t, 100, { { 5, n * 10, n } });
+  r.add(t, 100, {{5, n * 10, n}});
   for (int i = 0; i < 8; ++i)
   {
     t += 0.25;
     n += 5;  // 20 Hz
-    r.add(t, 100, { { 5, n * 10, n } });
+    r.add(t, 100, {{5, n * 10, n}});
   }
   // The node restarted (pid 200) between two polls: counts start again from 0, connection ids
   // too. Not a drop of 1000 messages, not a negative rate: 5 new messages.
   t += 0.25;
-  const auto grew = r.add(t, 200, { { 0, 50, 5 } });
-  EXPECT_EQ(grew, std::vector<int>{ 0 });
+  const auto grew = r.add(t, 200, {{0, 50, 5}});
+  EXPECT_EQ(grew, std::vector<int>{0});
   uint32_t m = 5;
   for (int i = 0; i < 7; ++i)
   {
     t += 0.25;
     m += 5;
-    r.add(t, 200, { { 0, m * 10, m } });
+    r.add(t, 200, {{0, m * 10, m}});
   }
   const auto s = r.stats(t);
   EXPECT_NEAR(s.rate_hz, 20.0, 1.0);
@@ -136,13 +139,13 @@ TEST(BusStatsRate, CountsWrapAt32Bits)
   uint32_t bytes = 0xFFFFFF00u;
   uint32_t n = 0;
   double t = 0.0;
-  r.add(t, 100, { { 0, bytes, n } });
+  r.add(t, 100, {{0, bytes, n}});
   for (int i = 0; i < 8; ++i)
   {
     t += 0.25;
     bytes += 64;  // wraps after 4 polls
     n += 1;
-    r.add(t, 100, { { 0, bytes, n } });
+    r.add(t, 100, {{0, bytes, n}});
   }
   const auto s = r.stats(t);
   EXPECT_NEAR(s.bytes_per_second, 64.0 * 8 / 2.0, 1e-6);
@@ -154,19 +157,19 @@ TEST(BusStatsRate, SilenceMakesTheAgeGrowAndTheRateFall)
   BusStatsRate r(2.0, 0.75);
   double t = 0.0;
   uint32_t n = 0;
-  r.add(t, 100, { { 0, 0, 0 } });
+  r.add(t, 100, {{0, 0, 0}});
   for (int i = 0; i < 8; ++i)
   {
     t += 0.25;
     n += 5;
-    r.add(t, 100, { { 0, n, n } });
+    r.add(t, 100, {{0, n, n}});
   }
   const double last = t;
   // The node answers, and has received nothing more.
   for (int i = 0; i < 4; ++i)
   {
     t += 0.25;
-    r.add(t, 100, { { 0, n, n } });
+    r.add(t, 100, {{0, n, n}});
   }
   auto s = r.stats(t);
   EXPECT_NEAR(s.last_message_age_s, t - last + 0.25 / 6.0, 1e-9);
@@ -176,7 +179,7 @@ TEST(BusStatsRate, SilenceMakesTheAgeGrowAndTheRateFall)
   for (int i = 0; i < 10; ++i)
   {
     t += 0.25;
-    r.add(t, 100, { { 0, n, n } });
+    r.add(t, 100, {{0, n, n}});
   }
   s = r.stats(t);
   EXPECT_EQ(s.rate_hz, 0.0);
@@ -189,12 +192,12 @@ TEST(BusStatsRate, ANodeThatStopsAnsweringHasItsTopicAgeFromTheOverdueReply)
   BusStatsRate r(2.0, 0.75);
   double t = 0.0;
   uint32_t n = 0;
-  r.add(t, 100, { { 0, 0, 0 } });
+  r.add(t, 100, {{0, 0, 0}});
   for (int i = 0; i < 8; ++i)
   {
     t += 0.25;
     n += 5;
-    r.add(t, 100, { { 0, n, n } });
+    r.add(t, 100, {{0, n, n}});
   }
   const double est = t - 0.25 / 6.0;
   // No reply since t: within the overdue time, nothing is known to be missing.
@@ -205,16 +208,19 @@ TEST(BusStatsRate, ANodeThatStopsAnsweringHasItsTopicAgeFromTheOverdueReply)
   EXPECT_EQ(r.stats(t + 3.0).rate_hz, 0.0);
   // A reply after a gap longer than the window is a new baseline: its backlog is not a burst.
   t += 5.0;
-  r.add(t, 100, { { 0, n + 100, n + 100 } });
+  r.add(t, 100, {{0, n + 100, n + 100}});
   EXPECT_EQ(r.stats(t).window_messages, 0u);
 }
 
 TEST(ProcNetTcp, ParsesTcpAndTheLocalSideOfTcp6)
 {
   const std::string v4 =
-      "  sl  local_address rem_address   st tx_queue rx_queue tr tm->when retrnsmt   uid  timeout inode\n"
-      "   0: 00000000:A1B2 00000000:0000 0A 00000000:00000000 00:00000000 00000000     0        0 1746346 1 0\n"
-      "   1: 0100007F:2B67 0100007F:D2A4 01 00000000:00000000 00:00000000 00000000     0        0 1746350 1 0\n"
+      "  sl  local_address rem_address   st tx_queue rx_queue tr tm->when retrnsmt   uid  timeout "
+      "inode\n"
+      "   0: 00000000:A1B2 00000000:0000 0A 00000000:00000000 00:00000000 00000000     0        0 "
+      "1746346 1 0\n"
+      "   1: 0100007F:2B67 0100007F:D2A4 01 00000000:00000000 00:00000000 00000000     0        0 "
+      "1746350 1 0\n"
       "   2: garbage\n";
   const auto e = parseProcNetTcp(v4);
   ASSERT_EQ(e.size(), 2u);
@@ -226,11 +232,14 @@ TEST(ProcNetTcp, ParsesTcpAndTheLocalSideOfTcp6)
   EXPECT_EQ(e[1].remote, "127.0.0.1:53924");
   EXPECT_EQ(e[1].state, kTcpEstablished);
   const std::string v6 =
-      "   0: 00000000000000000000000000000000:1F90 00000000000000000000000000000000:0000 0A 00000000:00000000 "
+      "   0: 00000000000000000000000000000000:1F90 00000000000000000000000000000000:0000 0A "
+      "00000000:00000000 "
       "00:00000000 00000000     0        0 11 1 0\n"
-      "   1: 0000000000000000FFFF00000100007F:1F91 00000000000000000000000000000000:0000 0A 00000000:00000000 "
+      "   1: 0000000000000000FFFF00000100007F:1F91 00000000000000000000000000000000:0000 0A "
+      "00000000:00000000 "
       "00:00000000 00000000     0        0 12 1 0\n"
-      "   2: 00000000000000000000000001000000:1F92 00000000000000000000000000000000:0000 0A 00000000:00000000 "
+      "   2: 00000000000000000000000001000000:1F92 00000000000000000000000000000000:0000 0A "
+      "00000000:00000000 "
       "00:00000000 00000000     0        0 13 1 0\n";
   const auto e6 = parseProcNetTcp(v6, true);
   ASSERT_EQ(e6.size(), 3u);
@@ -252,8 +261,9 @@ TEST(ListeningSockets, FindsThisProcesssListeningSocketAndItsAcceptedConnections
   ASSERT_EQ(::getsockname(server.get(), reinterpret_cast<sockaddr*>(&addr), &len), 0);
   const int port = ntohs(addr.sin_port);
   const auto find = [port] {
-    const auto all = listeningSockets({ int(::getpid()) });
-    const auto it = std::find_if(all.begin(), all.end(), [port](const ListeningSocket& s) { return s.port == port; });
+    const auto all = listeningSockets({int(::getpid())});
+    const auto it = std::find_if(all.begin(), all.end(),
+                                 [port](const ListeningSocket& s) { return s.port == port; });
     return it == all.end() ? std::optional<ListeningSocket>() : std::optional<ListeningSocket>(*it);
   };
   auto s = find();
@@ -273,18 +283,18 @@ TEST(ListeningSockets, FindsThisProcesssListeningSocketAndItsAcceptedConnections
 
   const auto members = processGroupMembers(int(::getpgrp()));
   EXPECT_NE(std::find(members.begin(), members.end(), int(::getpid())), members.end());
-  EXPECT_TRUE(listeningSockets({ 999999999 }).empty());
+  EXPECT_TRUE(listeningSockets({999999999}).empty());
 }
 
 TEST(WatchList, TheInputsOfRunningNodesAreCountedFromTheirBusStats)
 {
   WatchList w;
-  ASSERT_TRUE(w.assign({ "/scan", "/scan", "/camera/image_raw", "/odom" },
-                       { "/navigation", "/amcl", "/ar_recognition", "" }, nullptr));
+  ASSERT_TRUE(w.assign({"/scan", "/scan", "/camera/image_raw", "/odom"},
+                       {"/navigation", "/amcl", "/ar_recognition", ""}, nullptr));
   using Map = std::map<std::string, std::string>;
   EXPECT_EQ(w.runningSubscribers({}), Map());
-  EXPECT_EQ(w.runningSubscribers({ "/navigation" }), Map({ { "/scan", "/navigation" } }));
+  EXPECT_EQ(w.runningSubscribers({"/navigation"}), Map({{"/scan", "/navigation"}}));
   // Several run here: the first by name.
-  EXPECT_EQ(w.runningSubscribers({ "/navigation", "/amcl", "/ar_recognition" }),
-            Map({ { "/scan", "/amcl" }, { "/camera/image_raw", "/ar_recognition" } }));
+  EXPECT_EQ(w.runningSubscribers({"/navigation", "/amcl", "/ar_recognition"}),
+            Map({{"/scan", "/amcl"}, {"/camera/image_raw", "/ar_recognition"}}));
 }

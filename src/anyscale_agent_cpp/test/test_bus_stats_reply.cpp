@@ -68,9 +68,9 @@ XmlRpcValue rospyReply(const XmlRpcValue& subscribe)
 TEST(BusStatsReply, ParsesBothClientLibrariesShapes)
 {
   XmlRpcValue subs;
-  subs[0] = topicStats("/scan", { connection(3, 1200, 12), connection(7, 50, 1) });
+  subs[0] = topicStats("/scan", {connection(3, 1200, 12), connection(7, 50, 1)});
   subs[1] = topicStats("/idle", {});
-  for (const auto& reply : { roscppReply(subs), rospyReply(subs) })
+  for (const auto& reply : {roscppReply(subs), rospyReply(subs)})
   {
     SubscribedCounts out;
     std::string error;
@@ -87,7 +87,7 @@ TEST(BusStatsReply, ParsesBothClientLibrariesShapes)
 
 TEST(BusStatsReply, RefusesBadAndPartialRepliesWithTheReason)
 {
-  SubscribedCounts out{ { "/kept", {} } };
+  SubscribedCounts out{{"/kept", {}}};
   std::string error;
 
   XmlRpcValue fault;
@@ -110,8 +110,8 @@ TEST(BusStatsReply, RefusesBadAndPartialRepliesWithTheReason)
   XmlRpcValue bad_count = connection(1, 10, 1);
   bad_count[2] = std::string("12");
   XmlRpcValue subs;
-  subs[0] = topicStats("/good", { connection(0, 10, 1) });
-  subs[1] = topicStats("/bad", { bad_count });
+  subs[0] = topicStats("/good", {connection(0, 10, 1)});
+  subs[1] = topicStats("/bad", {bad_count});
   EXPECT_FALSE(parseBusStats(roscppReply(subs), &out, &error));
   EXPECT_NE(error.find("connection 0 of /bad"), std::string::npos) << error;
 
@@ -119,7 +119,7 @@ TEST(BusStatsReply, RefusesBadAndPartialRepliesWithTheReason)
   short_conn[0] = 1;
   short_conn[1] = 10;
   XmlRpcValue subs2;
-  subs2[0] = topicStats("/short", { short_conn });
+  subs2[0] = topicStats("/short", {short_conn});
   EXPECT_FALSE(parseBusStats(rospyReply(subs2), &out, &error));
 
   XmlRpcValue no_topic;
@@ -138,7 +138,7 @@ TEST(BusStatsReply, RefusesBadAndPartialRepliesWithTheReason)
 TEST(BusStatsReply, NegativeIntegersAreTheLow32BitsOfALargeCount)
 {
   XmlRpcValue subs;
-  subs[0] = topicStats("/camera", { connection(0, -5, 3) });  // roscpp's byte count past 2^31
+  subs[0] = topicStats("/camera", {connection(0, -5, 3)});  // roscpp's byte count past 2^31
   SubscribedCounts out;
   ASSERT_TRUE(parseBusStats(roscppReply(subs), &out, nullptr));
   EXPECT_EQ(out["/camera"][0].bytes, uint32_t(-5));

@@ -19,10 +19,12 @@ const std::string kSelf = "/anyscale_agent_robot";
 SystemState robotGraph()
 {
   SystemState s;
-  s.publishers = { { "/amcl_pose", { "/amcl__laptop" } }, { "/anyscale/status", { kSelf } } };
-  s.subscribers = { { "/amcl_pose", { "/ekf", kSelf } }, { "/ar_markers", { "/navigation", kSelf } },
-                    { "/camera/image_raw", { "/ar_recognition__laptop" } }, { "/rosout", { "/rosout" } } };
-  s.services = { { "/anyscale/robot/start_node", { kSelf } } };
+  s.publishers = {{"/amcl_pose", {"/amcl__laptop"}}, {"/anyscale/status", {kSelf}}};
+  s.subscribers = {{"/amcl_pose", {"/ekf", kSelf}},
+                   {"/ar_markers", {"/navigation", kSelf}},
+                   {"/camera/image_raw", {"/ar_recognition__laptop"}},
+                   {"/rosout", {"/rosout"}}};
+  s.services = {{"/anyscale/robot/start_node", {kSelf}}};
   return s;
 }
 
@@ -37,13 +39,13 @@ TEST(GraphState, TopicsWithASubscriberHereOtherThanTheAgentItself)
 {
   const auto topics = localSubscribedTopics(robotGraph(), kSelf, onRobot);
   ASSERT_TRUE(topics.has_value());
-  EXPECT_EQ(*topics, (std::set<std::string>{ "/amcl_pose", "/ar_markers", "/rosout" }));
+  EXPECT_EQ(*topics, (std::set<std::string>{"/amcl_pose", "/ar_markers", "/rosout"}));
 }
 
 TEST(GraphState, OnlyTheAgentsOwnCounterDoesNotMakeATopicLocal)
 {
   SystemState s = robotGraph();
-  s.subscribers = { { "/amcl_pose", { kSelf } } };
+  s.subscribers = {{"/amcl_pose", {kSelf}}};
   EXPECT_EQ(localSubscribedTopics(s, kSelf, onRobot), std::set<std::string>{});
 }
 
@@ -53,12 +55,12 @@ TEST(GraphState, AMasterThatDoesNotListTheAgentSaysNothingAboutWhoSubscribesHere
   // lists rosout's subscription alone. Taken for the graph, it dropped the counters of
   // /amcl_pose and /ar_markers, and the decision node, with no rate, brought AMCL and AR home.
   SystemState restarted;
-  restarted.subscribers = { { "/rosout", { "/rosout" } } };
-  restarted.publishers = { { "/rosout_agg", { "/rosout" } } };
+  restarted.subscribers = {{"/rosout", {"/rosout"}}};
+  restarted.publishers = {{"/rosout_agg", {"/rosout"}}};
   EXPECT_EQ(localSubscribedTopics(restarted, kSelf, onRobot), std::nullopt);
   EXPECT_EQ(localSubscribedTopics(SystemState{}, kSelf, onRobot), std::nullopt);
   // A counter the agent renewed meanwhile registers it as a subscriber, never a publisher.
-  restarted.subscribers.push_back({ "/ar_markers", { kSelf } });
+  restarted.subscribers.push_back({"/ar_markers", {kSelf}});
   EXPECT_FALSE(knowsAgent(restarted, kSelf));
   EXPECT_EQ(localSubscribedTopics(restarted, kSelf, onRobot), std::nullopt);
   EXPECT_TRUE(knowsAgent(robotGraph(), kSelf));
@@ -67,8 +69,8 @@ TEST(GraphState, AMasterThatDoesNotListTheAgentSaysNothingAboutWhoSubscribesHere
 TEST(GraphState, EachNodeIsAskedOnce)
 {
   SystemState s = robotGraph();
-  s.subscribers.push_back({ "/scan", { "/amcl__laptop", "/navigation" } });
-  s.subscribers.push_back({ "/tf", { "/amcl__laptop" } });
+  s.subscribers.push_back({"/scan", {"/amcl__laptop", "/navigation"}});
+  s.subscribers.push_back({"/tf", {"/amcl__laptop"}});
   std::map<std::string, int> asked;
   localSubscribedTopics(s, kSelf, [&](const std::string& node) {
     ++asked[node];

@@ -1,10 +1,10 @@
 // gtest: ICMP echo with kernel receive timestamps, on loopback (needs root or ping sockets).
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cmath>
 #include <memory>
 #include <stdexcept>
-#include <unistd.h>
 
 #include "anyscale_agent_cpp/icmp_echo.h"
 
@@ -77,8 +77,8 @@ TEST(IcmpEcho, TheBulkIsAbout20MsOfTheEstimateWithinItsBounds)
   using anyscale_agent::echoBulkBytes;
   EXPECT_EQ(echoBulkBytes(std::nan(""), 32768), 4096u);  // nothing measured: start small
   EXPECT_EQ(echoBulkBytes(0.5, 32768), 4096u);
-  EXPECT_EQ(echoBulkBytes(3.0, 32768), 7500u);           // fits a 50 ms shaper queue (18.7 kB)
-  EXPECT_EQ(echoBulkBytes(27.0, 32768), 32768u);         // capped by ~link_bulk_bytes
+  EXPECT_EQ(echoBulkBytes(3.0, 32768), 7500u);              // fits a 50 ms shaper queue (18.7 kB)
+  EXPECT_EQ(echoBulkBytes(27.0, 32768), 32768u);            // capped by ~link_bulk_bytes
   EXPECT_EQ(echoBulkBytes(27.0, 1000000), 67500u - 2500u);  // and by what a datagram holds
 }
 

@@ -33,3 +33,15 @@ TEST(LeaseTable, RenewNeedsAnExistingLease)
   t.remove("b");
   EXPECT_TRUE(t.takeExpired(10.0).empty());
 }
+
+TEST(LeaseTable, ARenewalNeverShortensALease)
+{
+  // renew_leases{lease_s: 1e-6} ended a node whose lease had seconds left.
+  LeaseTable t;
+  t.grant("amcl", 0.0, 3.0);
+  EXPECT_TRUE(t.renew("amcl", 1.0, 1e-6));
+  EXPECT_DOUBLE_EQ(t.expiry("amcl").value(), 3.0);
+  EXPECT_TRUE(t.takeExpired(2.9).empty());
+  EXPECT_TRUE(t.renew("amcl", 2.0, 3.0));
+  EXPECT_DOUBLE_EQ(t.expiry("amcl").value(), 5.0);
+}

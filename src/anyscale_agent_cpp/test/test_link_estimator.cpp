@@ -79,7 +79,7 @@ TEST(LinkEstimator, ALoneDelayedBulkEchoDoesNotLowerTheEstimate)
   e.sent(2, 1.0, 125000, ProbeKind::kBulk);
   e.answered(2, 1.04);  // 25 Mbit/s
   e.sent(3, 6.0, 125000, ProbeKind::kBulk);
-  e.answered(3, 6.2);   // the echo waited out a throttled CFS period: reads 5 Mbit/s
+  e.answered(3, 6.2);  // the echo waited out a throttled CFS period: reads 5 Mbit/s
   e.sent(4, 6.5, 125000, ProbeKind::kBulk);
   e.answered(4, 6.54);  // the confirming probe: 25 Mbit/s
   EXPECT_NEAR(e.stats(6.6).bandwidth_mbps, 25.0, 1e-6);
@@ -92,12 +92,12 @@ TEST(LinkEstimator, ALostConfirmingProbeConfirmsTheDrop)
   e.sent(1, 0.0, 20, ProbeKind::kSmall);
   e.answered(1, 0.0);
   e.sent(2, 1.0, 125000, ProbeKind::kBulk);
-  e.answered(2, 1.1);   // 10 Mbit/s
+  e.answered(2, 1.1);  // 10 Mbit/s
   e.sent(3, 2.0, 125000, ProbeKind::kBulk);
-  e.answered(3, 2.5);   // 2 Mbit/s
+  e.answered(3, 2.5);  // 2 Mbit/s
   e.sent(4, 2.5, 125000, ProbeKind::kBulk);
   e.sent(5, 3.0, 20, ProbeKind::kSmall);
-  e.answered(5, 3.0);   // still up, but the confirming bulk probe never comes back
+  e.answered(5, 3.0);  // still up, but the confirming bulk probe never comes back
   EXPECT_NEAR(e.stats(3.6).bandwidth_mbps, 2.0, 1e-6);
   EXPECT_FALSE(e.confirmationWanted());
 }
@@ -110,15 +110,15 @@ TEST(LinkEstimator, ALostLinkForgetsItsBandwidthUntilTheNextBulkAnswer)
   e.sent(2, 1.0, 125000, ProbeKind::kBulk);
   e.answered(2, 1.1);  // 10 Mbit/s where the robot was
   EXPECT_NEAR(e.stats(1.2).bandwidth_mbps, 10.0, 1e-6);
-  e.sent(3, 2.0, 20, ProbeKind::kSmall);                      // the link goes: unanswered
+  e.sent(3, 2.0, 20, ProbeKind::kSmall);  // the link goes: unanswered
   EXPECT_FALSE(e.stats(3.5).up);
   EXPECT_TRUE(std::isnan(e.stats(3.5).bandwidth_mbps));
   e.sent(4, 4.0, 20, ProbeKind::kSmall);
-  e.answered(4, 4.0);                             // back, elsewhere: up, nothing measured yet
+  e.answered(4, 4.0);  // back, elsewhere: up, nothing measured yet
   EXPECT_TRUE(e.stats(4.1).up);
   EXPECT_TRUE(std::isnan(e.stats(4.1).bandwidth_mbps));
   e.sent(5, 5.0, 125000, ProbeKind::kBulk);
-  e.answered(5, 5.5);                             // 2 Mbit/s here
+  e.answered(5, 5.5);  // 2 Mbit/s here
   EXPECT_NEAR(e.stats(5.6).bandwidth_mbps, 2.0, 1e-6);
 }
 

@@ -30,16 +30,18 @@ const fs::path kSeedModel = fs::path(__FILE__).parent_path() / "config" / "test_
 std::string mutate(std::string text, std::mt19937& rng)
 {
   static const std::string kSyntax = "{}[]:,&*!|>'\"-#%@`\n \t\\$()";
-  auto pos = [&] { return std::uniform_int_distribution<std::size_t>(0, text.empty() ? 0 : text.size() - 1)(rng); };
+  auto pos = [&] {
+    return std::uniform_int_distribution<std::size_t>(0, text.empty() ? 0 : text.size() - 1)(rng);
+  };
   const int edits = std::uniform_int_distribution<int>(1, 4)(rng);
   for (int i = 0; i < edits && !text.empty(); ++i)
     switch (std::uniform_int_distribution<int>(0, 4)(rng))
     {
-      case 0:
-        text[pos()] = char(std::uniform_int_distribution<int>(0, 255)(rng));
-        break;
+      case 0: text[pos()] = char(std::uniform_int_distribution<int>(0, 255)(rng)); break;
       case 1:
-        text.insert(pos(), 1, kSyntax[std::uniform_int_distribution<std::size_t>(0, kSyntax.size() - 1)(rng)]);
+        text.insert(
+            pos(), 1,
+            kSyntax[std::uniform_int_distribution<std::size_t>(0, kSyntax.size() - 1)(rng)]);
         break;
       case 2:
       {
@@ -57,8 +59,7 @@ std::string mutate(std::string text, std::mt19937& rng)
           text.insert(b, text.substr(a, b - a));
         break;
       }
-      default:
-        text.resize(pos());
+      default: text.resize(pos());
     }
   return text;
 }
@@ -73,7 +74,8 @@ TEST(NodeModelFuzz, MutatedModelsLoadOrFailWithModelErrorOnly)
 {
   const std::string seed = readFile(kSeedModel);
   ASSERT_FALSE(seed.empty()) << kSeedModel;
-  const fs::path file = fs::temp_directory_path() / ("anyscale_model_fuzz_" + std::to_string(::getpid()) + ".yaml");
+  const fs::path file =
+      fs::temp_directory_path() / ("anyscale_model_fuzz_" + std::to_string(::getpid()) + ".yaml");
   std::mt19937 rng(15);  // seeded: a failure is reproducible
   int loaded = 0, refused = 0;
   for (int i = 0; i < 2000; ++i)
@@ -88,8 +90,10 @@ TEST(NodeModelFuzz, MutatedModelsLoadOrFailWithModelErrorOnly)
       {
         const NodeDecl* d = m.find(name);
         ASSERT_NE(d, nullptr);
-        EXPECT_TRUE(isValidNodeName(d->name) && isValidPackageName(d->package) && isValidExecutableName(d->type))
-            << "mutation " << i << " loaded a node the allow-list should refuse:\n" << text;
+        EXPECT_TRUE(isValidNodeName(d->name) && isValidPackageName(d->package) &&
+                    isValidExecutableName(d->type))
+            << "mutation " << i << " loaded a node the allow-list should refuse:\n"
+            << text;
         for (const auto& kv : d->params)
           EXPECT_TRUE(kv.first.IsScalar()) << "mutation " << i << ":\n" << text;
         try
@@ -97,18 +101,19 @@ TEST(NodeModelFuzz, MutatedModelsLoadOrFailWithModelErrorOnly)
           buildArgv(*d, "/opt/exe", locate, "__laptop");
         }
         catch (const ModelError&)
-        {
-        }
+        {}
       }
     }
     catch (const ModelError& e)
     {
       ++refused;
-      EXPECT_EQ(std::string(e.what()).rfind(file.string(), 0), 0u) << "error does not name the file: " << e.what();
+      EXPECT_EQ(std::string(e.what()).rfind(file.string(), 0), 0u)
+          << "error does not name the file: " << e.what();
     }
     catch (const std::exception& e)
     {
-      ADD_FAILURE() << "mutation " << i << " threw " << typeid(e).name() << ": " << e.what() << "\n" << text;
+      ADD_FAILURE() << "mutation " << i << " threw " << typeid(e).name() << ": " << e.what() << "\n"
+                    << text;
     }
   }
   fs::remove(file);
@@ -118,8 +123,10 @@ TEST(NodeModelFuzz, MutatedModelsLoadOrFailWithModelErrorOnly)
 
 TEST(NodeModelFuzz, ParamsKeyThatIsNotANameIsRefusedAtLoad)
 {
-  const auto root = YAML::Load("nodes: [{name: a, launch: {package: p, type: t, params: {[1, 2]: x}}}]");
+  const auto root =
+      YAML::Load("nodes: [{name: a, launch: {package: p, type: t, params: {[1, 2]: x}}}]");
   EXPECT_THROW(NodeModel::parse(root, "m.yaml"), ModelError);
-  const auto slash = YAML::Load("nodes: [{name: a, launch: {package: p, type: t, params: {/abs: 1}}}]");
+  const auto slash =
+      YAML::Load("nodes: [{name: a, launch: {package: p, type: t, params: {/abs: 1}}}]");
   EXPECT_THROW(NodeModel::parse(slash, "m.yaml"), ModelError);
 }

@@ -24,19 +24,35 @@ NodeState sample()
   amcl.name = "/amcl";
   amcl.pid = 4242;
   amcl.start_time = 1234567;
-  amcl.argv = { "/opt/ws/devel/lib/anyscale_nav_demo/amcl", "scan:=/base_scan", "__name:=amcl" };
+  amcl.argv = {"/opt/ws/devel/lib/anyscale_nav_demo/amcl", "scan:=/base_scan", "__name:=amcl"};
   amcl.log_file = "/home/robot/.ros/log/anyscale/robot/amcl.log";
   amcl.state = "running";
   NodeStateEntry odd;  // every kind of text an argument may hold
   odd.name = "/ns/odd";
   odd.pid = 31337;
   odd.start_time = 18446744073709551615ull;
-  odd.argv = { "/usr/lib/x y/node", "", "a b", "#not a comment", "key: value", "- item", "[1, 2]", "null", "~",
-               "123", "quote\"d", "it's", "line\nbreak", "tab\there", "\xff\xfe raw bytes", "é ü", "&anchor", "*alias" };
+  odd.argv = {"/usr/lib/x y/node",
+              "",
+              "a b",
+              "#not a comment",
+              "key: value",
+              "- item",
+              "[1, 2]",
+              "null",
+              "~",
+              "123",
+              "quote\"d",
+              "it's",
+              "line\nbreak",
+              "tab\there",
+              "\xff\xfe raw bytes",
+              "é ü",
+              "&anchor",
+              "*alias"};
   odd.log_file = "/tmp/odd: log.log";
   odd.state = "paused";
   odd.lease_end_s = 123456.789012345;
-  s.nodes = { amcl, odd };
+  s.nodes = {amcl, odd};
   return s;
 }
 
@@ -81,6 +97,56 @@ TEST(NodeStateFile, WriteIsAtomicAndReadBack)
   // A directory that does not exist: a reason, no exception.
   EXPECT_FALSE(writeNodeStateFile(dir.path() + "/missing/nodes.yaml", one, &err));
   EXPECT_NE(err.find("missing"), std::string::npos) << err;
+}
+
+namespace
+{
+std::string contents(const std::string& path)
+{
+  std::ifstream f(path);
+  return std::string(std::istreambuf_iterator<char>(f), {});
+}
+}  // namespace
+
+TEST(NodeStateFile, NothingOutsideItsDirectoryIsWrittenOrRead)
+{
+  // ~state_file came from the parameter server: `rosparam set` + a restart made the agent
+  // (root on the test bed) replace any file. Now it comes from the command line, and a link
+  // planted at either name the writer uses is replaced, never written through.
+  supervisor_test::TempDir dir, elsewhere;
+  const std::string path = dir.path() + "/nodes.yaml";
+  const std::string victim = elsewhere.path() + "/passwd";
+  std::ofstream(victim) << "root:x:0:0\n";
+  std::string err;
+  ASSERT_EQ(::symlink(victim.c_str(), (path + ".tmp").c_str()), 0);
+  ASSERT_TRUE(writeNodeStateFile(path, sample(), &err)) << err;
+  EXPECT_EQ(contents(victim), "root:x:0:0\n");
+  EXPECT_EQ(readNodeStateFile(path)->nodes, sample().nodes);
+  ASSERT_EQ(::link(victim.c_str(), (path + ".tmp").c_str()), 0);  // a hard link: same file
+  ASSERT_TRUE(writeNodeStateFile(path, sample(), &err)) << err;
+  EXPECT_EQ(contents(victim), "root:x:0:0\n");
+  // A link at the file's own name: replaced by the write, refused by the read.
+  ASSERT_EQ(::unlink(path.c_str()), 0);
+  ASSERT_EQ(::symlink(victim.c_str(), path.c_str()), 0);
+  try
+  {
+    readNodeStateFile(path);
+    ADD_FAILURE() << "read through a symbolic link";
+  }
+  catch (const NodeStateError& e)
+  {
+    EXPECT_NE(std::string(e.what()).find("symbolic link"), std::string::npos) << e.what();
+  }
+  ASSERT_TRUE(writeNodeStateFile(path, sample(), &err)) << err;
+  EXPECT_EQ(contents(victim), "root:x:0:0\n");
+  EXPECT_FALSE(std::filesystem::is_symlink(path));
+  EXPECT_THROW(readNodeStateFile(dir.path()), NodeStateError);  // a directory
+  if (::geteuid() == 0)
+  {
+    // Another user's file lists processes the agent would adopt and signal.
+    ASSERT_EQ(::chown(path.c_str(), 65534, 65534), 0);
+    EXPECT_THROW(readNodeStateFile(path), NodeStateError);
+  }
 }
 
 TEST(NodeStateFile, EveryTruncationIsRefusedOrReadsTheSame)
@@ -149,39 +215,51 @@ TEST(NodeStateFile, UnknownOrMalformedContentIsNamed)
     }
     return std::string("accepted");
   };
-  EXPECT_NE(why("format: anyscale_agent_node_state/2\nboot_id: b\ncount: 0\nnodes: []\n").find("unknown format"),
+  EXPECT_NE(why("format: anyscale_agent_node_state/2\nboot_id: b\ncount: 0\nnodes: []\n")
+                .find("unknown format"),
             std::string::npos);
   EXPECT_NE(why("just text\n").find("not a map"), std::string::npos);
   const std::string head = "format: anyscale_agent_node_state/1\nboot_id: b\n";
   EXPECT_NE(why(head + "count: 1\nnodes: []\n").find("says 1"), std::string::npos);
-  const std::string node = "  - {name: /a, pid: 5, start_time: 9, state: running, lease_end_s: 0, log_file: l, ";
+  const std::string node =
+      "  - {name: /a, pid: 5, start_time: 9, state: running, lease_end_s: 0, log_file: l, ";
   EXPECT_EQ(why(head + "count: 1\nnodes:\n" + node + "argv: [/bin/a]}\n"), "accepted");
-  EXPECT_NE(why(head + "count: 1\nnodes:\n" + node + "argv: [a]}\n").find("absolute"), std::string::npos);
-  EXPECT_NE(why(head + "count: 1\nnodes:\n" + node + "argv: /bin/a}\n").find("must be a list"), std::string::npos);
-  const std::string bad_pid = "  - {name: /a, pid: five, start_time: 9, state: running, lease_end_s: 0, log_file: l, ";
-  EXPECT_NE(why(head + "count: 1\nnodes:\n" + bad_pid + "argv: [/bin/a]}\n").find("'pid' has the wrong type"),
+  EXPECT_NE(why(head + "count: 1\nnodes:\n" + node + "argv: [a]}\n").find("absolute"),
             std::string::npos);
-  const std::string bad_state = "  - {name: /a, pid: 5, start_time: 9, state: dancing, lease_end_s: 0, log_file: l, ";
-  EXPECT_NE(why(head + "count: 1\nnodes:\n" + bad_state + "argv: [/bin/a]}\n").find("unknown state"),
+  EXPECT_NE(why(head + "count: 1\nnodes:\n" + node + "argv: /bin/a}\n").find("must be a list"),
             std::string::npos);
-  EXPECT_NE(why(head + "count: 2\nnodes:\n" + node + "argv: [/bin/a]}\n" + node + "argv: [/bin/a]}\n").find("twice"),
+  const std::string bad_pid =
+      "  - {name: /a, pid: five, start_time: 9, state: running, lease_end_s: 0, log_file: l, ";
+  EXPECT_NE(why(head + "count: 1\nnodes:\n" + bad_pid + "argv: [/bin/a]}\n")
+                .find("'pid' has the wrong type"),
             std::string::npos);
+  const std::string bad_state =
+      "  - {name: /a, pid: 5, start_time: 9, state: dancing, lease_end_s: 0, log_file: l, ";
+  EXPECT_NE(
+      why(head + "count: 1\nnodes:\n" + bad_state + "argv: [/bin/a]}\n").find("unknown state"),
+      std::string::npos);
+  EXPECT_NE(
+      why(head + "count: 2\nnodes:\n" + node + "argv: [/bin/a]}\n" + node + "argv: [/bin/a]}\n")
+          .find("twice"),
+      std::string::npos);
 }
 
 TEST(NodeStateFile, CommandLineMatching)
 {
-  const std::vector<std::string> bin = { "/opt/lib/pkg/talker", "__name:=talker" };
+  const std::vector<std::string> bin = {"/opt/lib/pkg/talker", "__name:=talker"};
   EXPECT_TRUE(sameCommandLine(bin, bin));
-  EXPECT_TRUE(sameCommandLine(bin, parseCmdline(std::string("/opt/lib/pkg/talker\0__name:=talker\0", 35))));
+  EXPECT_TRUE(
+      sameCommandLine(bin, parseCmdline(std::string("/opt/lib/pkg/talker\0__name:=talker\0", 35))));
   // A script: its interpreter comes first ("#!/usr/bin/env python3" shows "python3").
-  EXPECT_TRUE(sameCommandLine(bin, { "python3", "/opt/lib/pkg/talker", "__name:=talker" }));
-  EXPECT_TRUE(sameCommandLine(bin, { "/bin/sh", "-e", "/opt/lib/pkg/talker", "__name:=talker" }));
-  EXPECT_FALSE(sameCommandLine(bin, { "/usr/bin/x", "a", "b", "/opt/lib/pkg/talker", "__name:=talker" }));
-  EXPECT_FALSE(sameCommandLine(bin, { "/opt/lib/pkg/talker", "__name:=other" }));
-  EXPECT_FALSE(sameCommandLine(bin, { "/opt/lib/pkg/talker", "__name:=talker", "extra" }));
-  EXPECT_FALSE(sameCommandLine(bin, { "/opt/lib/pkg/talker" }));
+  EXPECT_TRUE(sameCommandLine(bin, {"python3", "/opt/lib/pkg/talker", "__name:=talker"}));
+  EXPECT_TRUE(sameCommandLine(bin, {"/bin/sh", "-e", "/opt/lib/pkg/talker", "__name:=talker"}));
+  EXPECT_FALSE(
+      sameCommandLine(bin, {"/usr/bin/x", "a", "b", "/opt/lib/pkg/talker", "__name:=talker"}));
+  EXPECT_FALSE(sameCommandLine(bin, {"/opt/lib/pkg/talker", "__name:=other"}));
+  EXPECT_FALSE(sameCommandLine(bin, {"/opt/lib/pkg/talker", "__name:=talker", "extra"}));
+  EXPECT_FALSE(sameCommandLine(bin, {"/opt/lib/pkg/talker"}));
   EXPECT_FALSE(sameCommandLine(bin, {}));  // a zombie or a kernel thread
-  EXPECT_EQ(parseCmdline(std::string("a\0\0b\0", 5)), (std::vector<std::string>{ "a", "", "b" }));
+  EXPECT_EQ(parseCmdline(std::string("a\0\0b\0", 5)), (std::vector<std::string>{"a", "", "b"}));
 }
 
 TEST(NodeStateFile, WhyAProcessIsNotTheNode)
@@ -190,7 +268,7 @@ TEST(NodeStateFile, WhyAProcessIsNotTheNode)
   e.name = "/talker";
   e.pid = 4242;
   e.start_time = 777;
-  e.argv = { "/bin/sleep", "30" };
+  e.argv = {"/bin/sleep", "30"};
   const auto stat = [](const std::string& fields_after_comm) {
     return parseProcStat("4242 (sleep) " + fields_after_comm);
   };
@@ -200,17 +278,23 @@ TEST(NodeStateFile, WhyAProcessIsNotTheNode)
   auto check = [&](const std::optional<ProcStat>& s, const std::vector<std::string>& cmdline) {
     return checkIdentity(e, s, cmdline);
   };
-  EXPECT_EQ(check(stat("S 1 4242 4242 0 -1 0" + tail + "777 1000 10"), e.argv).identity, Identity::Same);
-  EXPECT_EQ(check(stat("T 1 4242 4242 0 -1 0" + tail + "777 1000 10"), e.argv).identity, Identity::Same) << "paused";
-  // Behind an interpreter (a script's "#!/usr/bin/env python3").
-  EXPECT_EQ(check(stat("S 1 4242 4242 0 -1 0" + tail + "777 1000 10"), { "python3", "/bin/sleep", "30" }).identity,
+  EXPECT_EQ(check(stat("S 1 4242 4242 0 -1 0" + tail + "777 1000 10"), e.argv).identity,
             Identity::Same);
+  EXPECT_EQ(check(stat("T 1 4242 4242 0 -1 0" + tail + "777 1000 10"), e.argv).identity,
+            Identity::Same)
+      << "paused";
+  // Behind an interpreter (a script's "#!/usr/bin/env python3").
+  EXPECT_EQ(
+      check(stat("S 1 4242 4242 0 -1 0" + tail + "777 1000 10"), {"python3", "/bin/sleep", "30"})
+          .identity,
+      Identity::Same);
   EXPECT_EQ(check(std::nullopt, {}).identity, Identity::Gone);
   EXPECT_EQ(check(stat("Z 1 4242 4242 0 -1 0" + tail + "777 0 0"), {}).identity, Identity::Gone);
   const IdentityCheck reused = check(stat("S 1 4242 4242 0 -1 0" + tail + "778 1000 10"), e.argv);
   EXPECT_EQ(reused.identity, Identity::Gone);
   EXPECT_NE(reused.why.find("another process"), std::string::npos) << reused.why;
-  const IdentityCheck exec = check(stat("S 1 4242 4242 0 -1 0" + tail + "777 1000 10"), { "/bin/bash" });
+  const IdentityCheck exec =
+      check(stat("S 1 4242 4242 0 -1 0" + tail + "777 1000 10"), {"/bin/bash"});
   EXPECT_EQ(exec.identity, Identity::Changed);
   EXPECT_NE(exec.why.find("another command line"), std::string::npos) << exec.why;
   const IdentityCheck group = check(stat("S 1 99 99 0 -1 0" + tail + "777 1000 10"), e.argv);
@@ -285,7 +369,8 @@ TEST(NodeStateWriter, AFailedWriteIsSaidOnceAndTriedAgain)
   ASSERT_TRUE(std::filesystem::create_directory(sub));
   writer.write(*writer.stage(sample()));
   EXPECT_EQ(writer.error(), "");
-  EXPECT_EQ(writer.takeNotes(), std::vector<std::string>{ "node state file " + path + " is written again" });
+  EXPECT_EQ(writer.takeNotes(),
+            std::vector<std::string>{"node state file " + path + " is written again"});
   EXPECT_EQ(readNodeStateFile(path)->nodes, sample().nodes);
   EXPECT_FALSE(writer.stage(sample()).has_value()) << "written: nothing to try again";
 }

@@ -61,7 +61,8 @@ TEST(OutputBoosts, ANewStartReplacesTheBoostAndNoBoostRecordsNothing)
 {
   OutputBoosts boosts(-5, 3.0, 0.5);
   boosts.started("amcl", "/amcl", 100, 0, 2.0, 10.0);
-  boosts.started("amcl", "/amcl", 101, 0, 2.0, 12.0);  // started again: the new process, the new deadline
+  boosts.started("amcl", "/amcl", 101, 0, 2.0,
+                 12.0);  // started again: the new process, the new deadline
   EXPECT_TRUE(boosts.update(14.0, kAllRun).empty());
   const auto due = boosts.update(15.0, kAllRun);
   ASSERT_EQ(due.size(), 1u);
@@ -78,7 +79,7 @@ TEST(OutputBoosts, ALateOutputIsBoostedUntilItsNextMessage)
 {
   OutputBoosts boosts(-5, 3.0, 0.5);
   boosts.started("ar", "/ar", 200, 5, 1.0, 10.0);
-  ASSERT_TRUE(boosts.published("/ar", 10.4));  // the start boost ends
+  ASSERT_TRUE(boosts.published("/ar", 10.4));         // the start boost ends
   EXPECT_TRUE(boosts.update(10.8, kAllRun).empty());  // silent 0.4 s of the 0.5 allowed
   const auto late = boosts.update(10.9, kAllRun);
   ASSERT_EQ(late.size(), 1u);
@@ -102,7 +103,7 @@ TEST(OutputBoosts, ANodeStillSilentAfterItsBoostIsWatchedAgainOnlyFromItsNextOut
   EXPECT_TRUE(boosts.update(50.0, kAllRun).empty());
   EXPECT_FALSE(boosts.published("/amcl", 50.0));
   ASSERT_EQ(boosts.update(51.0, kAllRun).size(), 1u);  // Δ 2 s: late after 1 s
-  const auto back = boosts.update(54.0, kAllRun);     // its input is gone: boost_s, then back
+  const auto back = boosts.update(54.0, kAllRun);      // its input is gone: boost_s, then back
   ASSERT_EQ(back.size(), 1u);
   EXPECT_EQ(back[0].nice, 0);
   EXPECT_TRUE(boosts.update(100.0, kAllRun).empty());
@@ -115,7 +116,9 @@ TEST(OutputBoosts, AnEntryWhoseProcessNoLongerRunsIsDropped)
   OutputBoosts boosts(-5, 3.0, 0.5);
   boosts.started("ar", "/ar", 200, 5, 1.0, 10.0);
   boosts.published("/ar", 10.2);
-  const auto paused = [](const std::string& name, int pid) { return !(name == "ar" && pid == 200); };
+  const auto paused = [](const std::string& name, int pid) {
+    return !(name == "ar" && pid == 200);
+  };
   EXPECT_TRUE(boosts.update(20.0, paused).empty());  // paused at home: silent, and not late
   EXPECT_TRUE(boosts.empty());
   boosts.started("ar", "/ar", 201, 5, 1.0, 30.0);  // resumed or started again

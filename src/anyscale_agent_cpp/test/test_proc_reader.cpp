@@ -46,7 +46,8 @@ TEST(ProcStat, ReadsOwnProcess)
 TEST(ProcStatCpu, BusyExcludesIdleAndIowait)
 {
   const std::string a = "cpu  100 10 50 800 40 0 0 0 0 0\ncpu0 50 5 25 400 20 0 0 0 0 0\nintr 1\n";
-  const std::string b = "cpu  200 10 100 950 40 0 0 0 0 0\ncpu0 100 5 50 475 20 0 0 0 0 0\nintr 1\n";
+  const std::string b =
+      "cpu  200 10 100 950 40 0 0 0 0 0\ncpu0 100 5 50 475 20 0 0 0 0 0\nintr 1\n";
   const auto ta = parseProcStatCpu(a), tb = parseProcStatCpu(b);
   ASSERT_TRUE(ta && tb);
   EXPECT_EQ(ta->total, 1000u);
@@ -59,7 +60,8 @@ TEST(ProcStatCpu, BusyExcludesIdleAndIowait)
 
 TEST(MemInfo, TotalAndAvailableInBytes)
 {
-  const auto m = parseMemInfo("MemTotal:       24576000 kB\nMemFree:  100 kB\nMemAvailable:   12288000 kB\n");
+  const auto m =
+      parseMemInfo("MemTotal:       24576000 kB\nMemFree:  100 kB\nMemAvailable:   12288000 kB\n");
   ASSERT_TRUE(m);
   EXPECT_EQ(m->total_bytes, 24576000ull * 1024);
   EXPECT_EQ(m->available_bytes, 12288000ull * 1024);
@@ -68,7 +70,8 @@ TEST(MemInfo, TotalAndAvailableInBytes)
 
 TEST(CpuInfo, HighestClockInGhz)
 {
-  EXPECT_DOUBLE_EQ(parseCpuInfoMaxGhz("cpu MHz\t\t: 1600.000\nfoo: 1\ncpu MHz\t\t: 2800.5\n"), 2.8005);
+  EXPECT_DOUBLE_EQ(parseCpuInfoMaxGhz("cpu MHz\t\t: 1600.000\nfoo: 1\ncpu MHz\t\t: 2800.5\n"),
+                   2.8005);
   EXPECT_DOUBLE_EQ(parseCpuInfoMaxGhz("model name: x\n"), 0.0);
 }
 

@@ -27,15 +27,16 @@ public:
   // idle: the child puts itself in SCHED_IDLE first, as scripts/python_standby does.
   explicit TwoThreadChild(bool idle = false)
   {
-    const char* argv[] = { "/usr/bin/python3", "-c",
-                           idle ? "import os, threading, time\n"
-                                  "os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))\n"
-                                  "threading.Thread(target=time.sleep, args=(60,), daemon=True).start()\n"
-                                  "time.sleep(60)\n" :
-                                  "import threading, time\n"
-                                  "threading.Thread(target=time.sleep, args=(60,), daemon=True).start()\n"
-                                  "time.sleep(60)\n",
-                           nullptr };
+    const char* argv[] = {
+        "/usr/bin/python3", "-c",
+        idle ? "import os, threading, time\n"
+               "os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))\n"
+               "threading.Thread(target=time.sleep, args=(60,), daemon=True).start()\n"
+               "time.sleep(60)\n"
+             : "import threading, time\n"
+               "threading.Thread(target=time.sleep, args=(60,), daemon=True).start()\n"
+               "time.sleep(60)\n",
+        nullptr};
     if (::posix_spawn(&pid_, argv[0], nullptr, nullptr, const_cast<char**>(argv), environ) != 0)
       pid_ = 0;
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
@@ -64,7 +65,7 @@ TEST(ProcessPriority, NiceReachesEveryThread)
   ASSERT_EQ(threadNices(child.pid()).size(), 2u);
   std::string error;
   ASSERT_TRUE(setProcessNice(child.pid(), 7, &error)) << error;
-  EXPECT_EQ(threadNices(child.pid()), (std::vector<int>{ 7, 7 }));
+  EXPECT_EQ(threadNices(child.pid()), (std::vector<int>{7, 7}));
 }
 
 TEST(ProcessPriority, BoostAndBackWithPrivilege)
@@ -75,15 +76,15 @@ TEST(ProcessPriority, BoostAndBackWithPrivilege)
   ASSERT_GT(child.pid(), 0);
   std::string error;
   ASSERT_TRUE(setProcessNice(child.pid(), -5, &error)) << error;
-  EXPECT_EQ(threadNices(child.pid()), (std::vector<int>{ -5, -5 }));
+  EXPECT_EQ(threadNices(child.pid()), (std::vector<int>{-5, -5}));
   ASSERT_TRUE(setProcessNice(child.pid(), 0, &error)) << error;
-  EXPECT_EQ(threadNices(child.pid()), (std::vector<int>{ 0, 0 }));
+  EXPECT_EQ(threadNices(child.pid()), (std::vector<int>{0, 0}));
 }
 
 TEST(ProcessPriority, GoneProcessIsAnError)
 {
   pid_t pid = 0;
-  const char* argv[] = { "/bin/true", nullptr };
+  const char* argv[] = {"/bin/true", nullptr};
   ASSERT_EQ(::posix_spawn(&pid, argv[0], nullptr, nullptr, const_cast<char**>(argv), environ), 0);
   ::waitpid(pid, nullptr, 0);
   std::string error;

@@ -83,7 +83,7 @@ def start_standby(executable, *args):
 
 @pytest.mark.parametrize("via_catkin_relay", [False, True])
 def test_start_runs_the_node_with_its_command_line_and_imports_done(tmp_path, node_script,
-                                                                  via_catkin_relay):
+                                                                    via_catkin_relay):
     executable = write(tmp_path / "relay", CATKIN_RELAY.format(source=node_script)) \
         if via_catkin_relay else node_script
     proc = start_standby(executable, "scan:=/base_scan", "__name:=my_node")

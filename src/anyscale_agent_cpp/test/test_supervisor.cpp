@@ -64,7 +64,8 @@ TEST(Supervisor, ChildIgnoringSigintGetsSigterm)
   Supervisor s(o);
   std::string err;
   // exec (not a child) so the trapped shell itself is the leader that must be ended.
-  const int pid = s.start("stubborn", sh("trap '' INT; while :; do sleep 0.05; done"), tempLog("int"), &err);
+  const int pid =
+      s.start("stubborn", sh("trap '' INT; while :; do sleep 0.05; done"), tempLog("int"), &err);
   ASSERT_GT(pid, 0) << err;
   std::this_thread::sleep_for(std::chrono::milliseconds(200));  // let the trap be installed
   const auto t0 = Clock::now();
@@ -82,7 +83,8 @@ TEST(Supervisor, ChildIgnoringSigintAndSigtermIsKilledAfterBothTimeouts)
   o.sigterm_timeout_s = 0.3;
   Supervisor s(o);
   std::string err;
-  const int pid = s.start("deaf", sh("trap '' INT TERM; while :; do sleep 0.05; done"), tempLog("deaf"), &err);
+  const int pid =
+      s.start("deaf", sh("trap '' INT TERM; while :; do sleep 0.05; done"), tempLog("deaf"), &err);
   ASSERT_GT(pid, 0) << err;
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
   const auto t0 = Clock::now();
@@ -103,7 +105,8 @@ TEST(Supervisor, ShortGraceGoesFromSigintStraightToSigkill)
 {
   Supervisor s;  // staged defaults of 15 s + 2 s, which a migration's stop does not wait for
   std::string err;
-  const int pid = s.start("slow", sh("trap '' INT TERM; while :; do sleep 0.05; done"), tempLog("slow"), &err);
+  const int pid =
+      s.start("slow", sh("trap '' INT TERM; while :; do sleep 0.05; done"), tempLog("slow"), &err);
   ASSERT_GT(pid, 0) << err;
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
   const auto t0 = Clock::now();
@@ -120,7 +123,8 @@ TEST(Supervisor, KillNowCutsAStopShortButOnlyAStop)
 {
   Supervisor s;
   std::string err;
-  const int pid = s.start("lingering", sh("trap '' INT TERM; while :; do sleep 0.05; done"), tempLog("linger"), &err);
+  const int pid = s.start("lingering", sh("trap '' INT TERM; while :; do sleep 0.05; done"),
+                          tempLog("linger"), &err);
   ASSERT_GT(pid, 0) << err;
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
   EXPECT_FALSE(s.killNow("lingering"));  // not being stopped: left alone
@@ -140,7 +144,8 @@ TEST(Supervisor, ExpiredLeaseKillsAtOnceWithoutTheGracefulStages)
 {
   Supervisor s;  // roslaunch's 15 s + 2 s grace: a lease end must not wait for them
   std::string err;
-  const int pid = s.start("cut_off", sh("trap '' INT TERM; while :; do sleep 0.05; done"), tempLog("cut"), &err);
+  const int pid = s.start("cut_off", sh("trap '' INT TERM; while :; do sleep 0.05; done"),
+                          tempLog("cut"), &err);
   ASSERT_GT(pid, 0) << err;
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
   const auto t0 = Clock::now();
@@ -197,6 +202,26 @@ TEST(Supervisor, OutputGoesToTheLogFile)
   EXPECT_EQ(s.info("echo")->log_file, log);
 }
 
+TEST(Supervisor, ALinkAtTheLogFileIsNotWrittenThrough)
+{
+  supervisor_test::TempDir elsewhere;
+  const std::string victim = elsewhere.path() + "/victim";
+  std::ofstream(victim) << "precious\n";
+  Supervisor s;
+  std::string err;
+  for (const std::string tag : {"symlinked", "hardlinked"})
+  {
+    const std::string log = tempLog(tag);
+    std::remove(log.c_str());
+    ASSERT_EQ(tag == "symlinked" ? ::symlink(victim.c_str(), log.c_str())
+                                 : ::link(victim.c_str(), log.c_str()),
+              0);
+    EXPECT_EQ(s.start(tag, sh("echo appended"), log, &err), 0) << tag;
+    EXPECT_NE(err.find("log file"), std::string::npos) << err;
+  }
+  EXPECT_EQ(supervisor_test::readFile(victim), "precious\n");
+}
+
 namespace
 {
 // The nice of a node the supervisor starts when the supervisor was made on a thread running at
@@ -226,14 +251,14 @@ TEST(Supervisor, NodesStartAtTheChildNiceNotTheAgents)
   if (base > 12)
     GTEST_SKIP() << "the test runs at nice " << base << ": no room to set two higher values";
   // Raising a nice value needs no privilege: an agent at base + 2, its node at base + 5.
-  EXPECT_EQ(nicesOfNodeStartedAt(base + 2, base + 5), std::vector<int>{ base + 5 });
+  EXPECT_EQ(nicesOfNodeStartedAt(base + 2, base + 5), std::vector<int>{base + 5});
 }
 
 TEST(Supervisor, NodesDoNotInheritTheAgentsRaisedPriority)
 {
   if (::geteuid() != 0)
     GTEST_SKIP() << "a negative nice (the agent's ~control_nice) needs root (CAP_SYS_NICE)";
-  EXPECT_EQ(nicesOfNodeStartedAt(-4, 0), std::vector<int>{ 0 });
+  EXPECT_EQ(nicesOfNodeStartedAt(-4, 0), std::vector<int>{0});
 }
 
 TEST(Supervisor, DestructorStopsEverything)

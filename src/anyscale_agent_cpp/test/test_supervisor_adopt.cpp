@@ -55,7 +55,7 @@ struct ForeignNode
         // As spawnChild sets up a node: default dispositions and an empty mask. A test run in
         // the background of a non-interactive shell inherits SIGINT ignored, and a node that
         // ignores it outlasts a stop's SIGINT phase.
-        for (const int sig : { SIGINT, SIGTERM, SIGQUIT, SIGHUP })
+        for (const int sig : {SIGINT, SIGTERM, SIGQUIT, SIGHUP})
           ::signal(sig, SIG_DFL);
         sigset_t none;
         ::sigemptyset(&none);
@@ -76,7 +76,8 @@ struct ForeignNode
     ::close(fds[0]);
     // Adoption compares the command line, so wait until the exec has happened.
     const auto end = Clock::now() + std::chrono::seconds(5);
-    while (Clock::now() < end && parseCmdline(anyscale_agent::readFile(procPath("cmdline")).value_or("")) != argv)
+    while (Clock::now() < end &&
+           parseCmdline(anyscale_agent::readFile(procPath("cmdline")).value_or("")) != argv)
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
     start_time = startTime();
   }
@@ -88,7 +89,10 @@ struct ForeignNode
     if (parent > 0)
       ::waitpid(parent, &status, 0);  // ECHILD if a supervisor's waitpid(-1) took it first
   }
-  std::string procPath(const std::string& file) const { return "/proc/" + std::to_string(pid) + "/" + file; }
+  std::string procPath(const std::string& file) const
+  {
+    return "/proc/" + std::to_string(pid) + "/" + file;
+  }
   uint64_t startTime() const
   {
     const auto stat = parseProcStat(anyscale_agent::readFile(procPath("stat")).value_or(""));
@@ -132,11 +136,11 @@ protected:
 
 TEST_P(SupervisorAdopt, AdoptsALiveNodeAndStopsIt)
 {
-  ForeignNode node({ "/bin/sleep", "30" });
+  ForeignNode node({"/bin/sleep", "30"});
   ASSERT_GT(node.pid, 0);
   NodeStateEntry e = node.entry("/talker");
   e.lease_end_s = 98765.25;
-  writeState(path_, { e });
+  writeState(path_, {e});
 
   Supervisor s(options());
   const AdoptionReport report = s.adopt(path_);
@@ -153,24 +157,25 @@ TEST_P(SupervisorAdopt, AdoptsALiveNodeAndStopsIt)
   // A node like any other: it is listed, and a second start of its name is refused.
   ASSERT_EQ(s.snapshot().size(), 1u);
   std::string err;
-  EXPECT_EQ(s.start("/talker", { "/bin/sleep", "30" }, tempLog("twice"), &err), 0);
+  EXPECT_EQ(s.start("/talker", {"/bin/sleep", "30"}, tempLog("twice"), &err), 0);
   EXPECT_NE(err.find("already running"), std::string::npos) << err;
   // The file now lists it as this supervisor's.
-  EXPECT_EQ(readNodeStateFile(path_)->nodes, std::vector<NodeStateEntry>{ e });
+  EXPECT_EQ(readNodeStateFile(path_)->nodes, std::vector<NodeStateEntry>{e});
 
   ASSERT_TRUE(s.stop("/talker"));
   ASSERT_TRUE(s.waitGone("/talker", 10.0));
   EXPECT_EQ(s.info("/talker")->state, ProcState::Exited);
   EXPECT_TRUE(s.takeUnrequestedExits().empty()) << "a requested stop";
-  EXPECT_TRUE(waitUntil([&] { return processGone(node.pid); }, 5.0, s)) << "its stand-in parent reaps it";
+  EXPECT_TRUE(waitUntil([&] { return processGone(node.pid); }, 5.0, s))
+      << "its stand-in parent reaps it";
   EXPECT_TRUE(readNodeStateFile(path_)->nodes.empty());
 }
 
 TEST_P(SupervisorAdopt, AnAdoptedNodeThatExitsIsReportedExited)
 {
-  ForeignNode node({ "/bin/sleep", "30" });
+  ForeignNode node({"/bin/sleep", "30"});
   ASSERT_GT(node.pid, 0);
-  writeState(path_, { node.entry("/quitter") });
+  writeState(path_, {node.entry("/quitter")});
   Supervisor s(options());
   ASSERT_EQ(s.adopt(path_).adopted.size(), 1u);
   s.poll();
@@ -183,24 +188,24 @@ TEST_P(SupervisorAdopt, AnAdoptedNodeThatExitsIsReportedExited)
   // Its parent got the status, not us.
   EXPECT_EQ(info.exit_code, -1);
   EXPECT_EQ(info.exit_signal, 0);
-  EXPECT_EQ(s.takeUnrequestedExits(), std::vector<std::string>{ "/quitter" });
+  EXPECT_EQ(s.takeUnrequestedExits(), std::vector<std::string>{"/quitter"});
   EXPECT_TRUE(readNodeStateFile(path_)->nodes.empty());
   // And the name is free for a fresh start.
   std::string err;
-  EXPECT_GT(s.start("/quitter", { "/bin/sleep", "30" }, tempLog("quitter2"), &err), 0) << err;
+  EXPECT_GT(s.start("/quitter", {"/bin/sleep", "30"}, tempLog("quitter2"), &err), 0) << err;
 }
 
 TEST_P(SupervisorAdopt, APidWithAnotherStartTimeOrCommandIsNotAdopted)
 {
-  ForeignNode node({ "/bin/sleep", "30" });
+  ForeignNode node({"/bin/sleep", "30"});
   ASSERT_GT(node.pid, 0);
   NodeStateEntry reused = node.entry("/reused");
   reused.start_time += 1;  // the pid was handed to another process since
   NodeStateEntry other_command = node.entry("/other");
-  other_command.argv = { "/bin/sleep", "31" };
+  other_command.argv = {"/bin/sleep", "31"};
   NodeStateEntry gone = node.entry("/gone");
   gone.pid = 4194304 + 1;  // above any pid_max: no such process
-  writeState(path_, { reused, other_command, gone });
+  writeState(path_, {reused, other_command, gone});
 
   Supervisor s(options());
   const AdoptionReport report = s.adopt(path_);
@@ -214,14 +219,14 @@ TEST_P(SupervisorAdopt, APidWithAnotherStartTimeOrCommandIsNotAdopted)
                      std::to_string(node.pid) + " is another process now"),
             std::string::npos)
       << all;
-  EXPECT_NE(all.find("/other (pid " + std::to_string(node.pid) + "): pid " + std::to_string(node.pid) +
-                     " runs another command line"),
+  EXPECT_NE(all.find("/other (pid " + std::to_string(node.pid) + "): pid " +
+                     std::to_string(node.pid) + " runs another command line"),
             std::string::npos)
       << all;
   EXPECT_NE(all.find("/gone (pid 4194305): it has ended"), std::string::npos) << all;
   // The nodes that ended while no agent ran are shown as ended by themselves (so that the
   // decision node starts them again); the process it cannot identify is not shown at all.
-  for (const char* name : { "/reused", "/gone" })
+  for (const char* name : {"/reused", "/gone"})
   {
     const auto info = s.info(name);
     ASSERT_TRUE(info.has_value()) << name;
@@ -231,7 +236,7 @@ TEST_P(SupervisorAdopt, APidWithAnotherStartTimeOrCommandIsNotAdopted)
     EXPECT_EQ(info->exit_signal, 0);
   }
   EXPECT_FALSE(s.info("/other").has_value());
-  EXPECT_EQ(s.takeUnrequestedExits(), (std::vector<std::string>{ "/reused", "/gone" }));
+  EXPECT_EQ(s.takeUnrequestedExits(), (std::vector<std::string>{"/reused", "/gone"}));
   EXPECT_TRUE(readNodeStateFile(path_)->nodes.empty());
   // A process it cannot identify is not its to end.
   s.poll();
@@ -240,7 +245,7 @@ TEST_P(SupervisorAdopt, APidWithAnotherStartTimeOrCommandIsNotAdopted)
 
 TEST_P(SupervisorAdopt, APausedNodeStaysPausedAndResumes)
 {
-  ForeignNode node({ "/bin/sleep", "30" });
+  ForeignNode node({"/bin/sleep", "30"});
   ASSERT_GT(node.pid, 0);
   ASSERT_EQ(::kill(-node.pid, SIGSTOP), 0);
   const auto end = Clock::now() + std::chrono::seconds(2);
@@ -248,7 +253,7 @@ TEST_P(SupervisorAdopt, APausedNodeStaysPausedAndResumes)
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   NodeStateEntry e = node.entry("/spare");
   e.state = "paused";
-  writeState(path_, { e });
+  writeState(path_, {e});
   Supervisor s(options());
   ASSERT_EQ(s.adopt(path_).adopted.size(), 1u);
   EXPECT_EQ(s.info("/spare")->state, ProcState::Paused);
@@ -261,11 +266,11 @@ TEST_P(SupervisorAdopt, APausedNodeStaysPausedAndResumes)
 
 TEST_P(SupervisorAdopt, ANodeItsPredecessorWasStoppingIsStopped)
 {
-  ForeignNode node({ "/bin/sleep", "30" });
+  ForeignNode node({"/bin/sleep", "30"});
   ASSERT_GT(node.pid, 0);
   NodeStateEntry e = node.entry("/leaving");
   e.state = "stopping";
-  writeState(path_, { e });
+  writeState(path_, {e});
   Supervisor s(options());
   ASSERT_EQ(s.adopt(path_).adopted.size(), 1u);
   ASSERT_TRUE(s.waitGone("/leaving", 5.0));
@@ -304,7 +309,7 @@ TEST(SupervisorAdoptFile, AnUnusableFileIsOneWarningAndNoNode)
   const AdoptionReport unwritable = blind.adopt(fresh.path() + "/no/such/dir/nodes.yaml");
   EXPECT_NE(unwritable.warning.find("will not find"), std::string::npos) << unwritable.warning;
   std::string err;
-  EXPECT_GT(blind.start("/n", { "/bin/sleep", "30" }, tempLog("blind"), &err), 0) << err;
+  EXPECT_GT(blind.start("/n", {"/bin/sleep", "30"}, tempLog("blind"), &err), 0) << err;
   EXPECT_TRUE(blind.takeStateFileNotes().empty()) << "the same failure is said once";
 }
 
@@ -312,10 +317,10 @@ TEST(SupervisorAdoptFile, EntriesFromAnotherBootAreDropped)
 {
   TempDir dir;
   const std::string path = dir.path() + "/nodes.yaml";
-  ForeignNode node({ "/bin/sleep", "30" });
+  ForeignNode node({"/bin/sleep", "30"});
   NodeState s;
   s.boot_id = "00000000-0000-0000-0000-000000000000";
-  s.nodes = { node.entry("/old") };
+  s.nodes = {node.entry("/old")};
   std::string err;
   ASSERT_TRUE(writeNodeStateFile(path, s, &err)) << err;
   Supervisor sup;
@@ -345,7 +350,7 @@ TEST(SupervisorAdoptFile, NodesOfAKilledAgentLiveOnAndAreAdopted)
     Supervisor s(o);
     s.adopt(path);
     std::string err;
-    int pid = s.start("/survivor", { "/bin/sleep", "30" }, log, &err);
+    int pid = s.start("/survivor", {"/bin/sleep", "30"}, log, &err);
     s.markRunning("/survivor");
     ssize_t w = ::write(fds[1], &pid, sizeof pid);
     (void)w;

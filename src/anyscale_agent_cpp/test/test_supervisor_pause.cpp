@@ -34,7 +34,8 @@ TEST(SupervisorPause, APausedNodeDoesNothingAndResumesWhereItWas)
 
   ASSERT_TRUE(s.pause("ticker", &err)) << err;
   EXPECT_EQ(s.info("ticker")->state, ProcState::Paused);
-  ASSERT_TRUE(waitUntil([&] { return groupStopped(pid); }, 2.0, s)) << "leader's state " << procState(pid);
+  ASSERT_TRUE(waitUntil([&] { return groupStopped(pid); }, 2.0, s))
+      << "leader's state " << procState(pid);
   const std::size_t paused_at = fileSize(ticks);
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   s.poll();

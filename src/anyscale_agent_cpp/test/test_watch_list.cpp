@@ -12,7 +12,8 @@ TEST(WatchList, CountsTheInputsOfARunningNodeWithoutTheGraph)
   ASSERT_TRUE(w.assign({"/scan", "/camera/image_raw"}, {"/amcl", "/ar_recognition"}, nullptr));
   // The master's graph has not (yet) seen either subscription; AMCL runs here.
   EXPECT_EQ(w.toCount({}, {"/amcl"}, false), Set({"/scan"}));
-  EXPECT_EQ(w.toCount({}, {"/amcl", "/ar_recognition"}, false), Set({"/scan", "/camera/image_raw"}));
+  EXPECT_EQ(w.toCount({}, {"/amcl", "/ar_recognition"}, false),
+            Set({"/scan", "/camera/image_raw"}));
 }
 
 TEST(WatchList, ATopicNoNodeHereUsesIsNotCounted)

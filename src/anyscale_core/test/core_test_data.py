@@ -1,5 +1,5 @@
-"""Test data for anyscale_core's tests: the paper's test bed and random system models
-(hypothesis strategies)."""
+"""Test data for anyscale_core's tests: the paper's test bed (a model of their own, beside this
+file) and random system models (hypothesis strategies)."""
 import copy
 import os
 
@@ -8,8 +8,7 @@ from hypothesis import strategies as st
 from anyscale_core.characterisation import characterise
 from anyscale_core.model_loader import parse_model
 
-TESTBED = os.path.normpath(os.path.join(os.path.dirname(__file__), "..", "..",
-                                        "anyscale_nav_demo", "config", "testbed.yaml"))
+TESTBED = os.path.join(os.path.dirname(os.path.abspath(__file__)), "config", "paper_testbed.yaml")
 
 
 def mutated(data, path, value):

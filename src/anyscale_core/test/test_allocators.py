@@ -4,8 +4,9 @@ from hypothesis import given, strategies as st
 import numpy as np
 import pytest
 
-from anyscale_core.allocators import (ALLOCATORS, AllocationContext, OptimalAllocator,
-                                      PaperAllocator, make_allocator)
+from anyscale_core.allocators import (ALLOCATORS, BUDGETED, DEFAULT_TIME_BUDGET_S,
+                                      AllocationContext, OptimalAllocator, PaperAllocator,
+                                      PaperLocalAllocator, make_allocator)
 from anyscale_core.characterisation import characterise, enumerate_mappings
 from anyscale_core.constraints import DynamicState, is_feasible
 from anyscale_core.cost import perf
@@ -149,7 +150,7 @@ def test_optimal_beats_every_feasible_mapping(case):
 def test_milp_matches_enumeration(case):
     ch, state = case
     enumerated = OptimalAllocator().decide(ch, ch.initial_mapping(), state, AllocationContext())
-    solved = OptimalAllocator(enumeration_limit=0)
+    solved = OptimalAllocator(enumeration_limit=0, time_budget_s=None)
     milp = solved.decide(ch, ch.initial_mapping(), state, AllocationContext())
     assert solved.last_method == "milp"
     assert is_feasible(ch, milp.assign, state)
@@ -168,3 +169,51 @@ def test_allocators_return_feasible_mappings_and_keep_critical_nodes(name, case,
         assert is_feasible(ch, d.assign, state)
         assert (d.assign[ch.critical] == ch.master).all()
         assert (d.assign[ch.pinned] == current[ch.pinned]).all()
+
+
+class TickingClock:
+    """A clock that advances one tick each time it is read: a time budget in ticks bounds the
+    number of checks, so budgeted searches are deterministic."""
+
+    def __init__(self):
+        self.t = 0.0
+
+    def __call__(self):
+        self.t += 1.0
+        return self.t
+
+
+@given(systems_and_states())
+def test_a_time_budgeted_search_returns_a_feasible_mapping_never_below_its_start(case):
+    """paper_local is anytime: with any budget its decision keeps every constraint, is at least
+    the paper's decision it starts from, and is no worse for a longer budget."""
+    ch, state = case
+    start, ctx = ch.initial_mapping(), AllocationContext()
+    paper = perf(ch, PaperAllocator().decide(ch, start, state, ctx).assign)
+    last = -np.inf
+    for ticks in (0, 1, 2, 3, 5, 8, 13, 40, None):
+        alloc = PaperLocalAllocator(time_budget_s=ticks, clock=TickingClock())
+        d = alloc.decide(ch, start, state, ctx)
+        assert is_feasible(ch, d.assign, state)
+        assert perf(ch, d.assign) >= max(paper, last) - 1e-9
+        last = perf(ch, d.assign)
+
+
+@given(systems_and_states())
+def test_a_search_with_no_time_left_returns_the_paper_decision(case):
+    ch, state = case
+    start, ctx = ch.initial_mapping(), AllocationContext()
+    paper = PaperAllocator().decide(ch, start, state, ctx).assign
+    assert (PaperLocalAllocator(time_budget_s=0.0).decide(ch, start, state, ctx).assign
+            == paper).all()
+    # The MILP gets no time either: the optimum falls back on its incumbent, paper_local's.
+    optimal = OptimalAllocator(enumeration_limit=0, time_budget_s=0.0)
+    assert (optimal.decide(ch, start, state, ctx).assign == paper).all()
+    assert optimal.last_method == "local search"
+
+
+def test_searching_allocators_take_the_time_budget_and_the_paper_step_none():
+    for name in BUDGETED:
+        assert make_allocator(name).time_budget_s == DEFAULT_TIME_BUDGET_S
+        assert make_allocator(name, 0.02).time_budget_s == 0.02
+    assert not hasattr(make_allocator("paper", 0.02), "time_budget_s")

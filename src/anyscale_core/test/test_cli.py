@@ -8,6 +8,7 @@ import sys
 import pytest
 
 from anyscale_core.cli import main
+from anyscale_core.cli_plugins import registered_modules
 
 SCRIPT = os.path.join(os.path.dirname(__file__), "..", "scripts", "anyscale")
 
@@ -89,9 +90,8 @@ def test_every_command_has_help(command, capsys):
                   "(see anyscale profile --help)"),
     (["profile", "m.yaml", "--window", "-3"], "anyscale profile: error: argument --window: "
                                               "expected a number in (0, 86400], got -3"),
-    (["thresholds", "m.yaml", "--connection", "a:b:/t"], "anyscale thresholds: error: one of "
-                                                          "the arguments --probe --probe-script "
-                                                          "is required"),
+    (["thresholds", "m.yaml", "--connection", "a:b:/t"],
+     "anyscale thresholds: error: one of the arguments --probe --probe-script is required"),
     (["thresholds", "m.yaml", "--connection", "a:b:/t", "--probe", "/p", "--probe-script",
       "x"], "argument --probe-script: not allowed with argument --probe"),
     (["thresholds", "m.yaml", "--connection", "a:b:/t", "--rates", "5,x", "--probe", "/p"],
@@ -119,13 +119,31 @@ def test_profile_and_thresholds_refuse_bad_files_and_options(testbed_path, tmp_p
                    "anyscale thresholds: error: --quota: expected a share in (0, 1], got 1.5"]
 
 
-def test_simulate_without_the_study_says_what_to_install(monkeypatch, capsys):
-    # None in sys.modules makes `import anyscale_study` fail as where it is not installed.
-    monkeypatch.setitem(sys.modules, "anyscale_study", None)
-    assert main(["simulate", "--runs", "1"]) == 2
+def test_simulate_without_the_study_says_what_to_install(capsys):
+    assert main(["simulate", "--runs", "1"], plugins=[]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["anyscale simulate: needs the package anyscale_study (the paper's Fig. 7 "
                    "study); build or install it beside anyscale_core"]
+
+
+def test_the_study_registers_simulate_through_its_package_xml():
+    assert ("anyscale_study", "anyscale_study.cli_simulate") in registered_modules()
+
+
+def test_a_broken_plugin_is_named_and_the_other_commands_still_work(testbed_path, capsys):
+    assert main(["check", testbed_path], plugins=[("broken_pkg", "no_such_module_x")]) == 0
+    assert "the commands of broken_pkg (no_such_module_x) are left out: " \
+        "ModuleNotFoundError" in capsys.readouterr().err
+
+
+def test_registered_modules_reads_rospack_and_survives_its_absence():
+    class Done:
+        returncode, stdout = 0, "pkg_b mod_b\npkg_a mod.a\n\n"
+    assert registered_modules(lambda *a, **k: Done()) == [("pkg_a", "mod.a"), ("pkg_b", "mod_b")]
+
+    def missing(*a, **k):
+        raise FileNotFoundError("rospack")
+    assert registered_modules(missing) == []
 
 
 def test_unknown_options_of_other_commands_are_still_refused(testbed_path):
@@ -141,4 +159,4 @@ def test_help_lists_the_commands_in_their_order(capsys):
     out = capsys.readouterr().out
     listed = [line.split()[0] for line in out.splitlines()
               if line.startswith("    ") and not line.startswith("     ")]
-    assert listed == ["check", "plan", "simulate", "top", "model", "profile", "thresholds"]
+    assert listed == ["check", "plan", "top", "model", "profile", "thresholds", "simulate"]

@@ -209,3 +209,16 @@ def test_totals_table_lists_every_configuration_with_distance_time_and_share():
     assert lines[2].startswith("laptop: amcl") and "2.00 m" in lines[2] and "66.7%" in lines[2]
     assert lines[-1].startswith("total") and "3.00 m" in lines[-1] and "30.0 s" in lines[-1]
     assert format_totals({}, "robot").splitlines()[-1].split()[:2] == ["total", "0.00"]
+
+
+def test_the_nodes_parameters_have_their_defaults_and_name_a_bad_one():
+    from anyscale_core.configuration_path_ros import read_params
+    from anyscale_core.param_spec import ParamError
+    p = read_params(lambda name, default: default)
+    assert (p["global_frame"], p["base_frame"], p["master"], p["rate_hz"]) == \
+        ("map", "base_link", "robot", 4.0)
+    assert p["max_points"] == 20000
+    with pytest.raises(ParamError, match=r"~publish_period_s: expected a number >= 1"):
+        read_params(lambda name, default: 0.5 if name == "~publish_period_s" else default)
+    assert read_params(lambda name, default: "/odom" if name == "~global_frame"
+                       else default)["global_frame"] == "odom"

@@ -48,14 +48,14 @@ def test_critical_node_off_master_is_a_placement_violation(testbed_ch):
 def test_tracker_violates_after_tolerance():
     tr = FrequencyToleranceTracker(freq_min=2.0, tolerance_s=2.0)
     tr.update(0.0, 5.0)
-    assert not tr.violated(0.0) and tr.tolerance_left(0.0) == 2.0
+    assert not tr.violated(0.0) and tr.below_for(0.0) == 0.0
     tr.update(1.0, 1.0)             # below from t=1
-    assert tr.tolerance_left(2.5) == pytest.approx(0.5)
+    assert tr.below_for(2.5) == pytest.approx(1.5)
     assert tr.used_fraction(2.0) == pytest.approx(0.5)
     assert not tr.violated(3.0)     # exactly the tolerance: not yet longer than it
     assert tr.violated(3.1)
     tr.update(3.2, 2.0)             # back at freq_min: recovered
-    assert not tr.violated(3.2) and tr.tolerance_left(3.2) == 2.0
+    assert not tr.violated(3.2) and tr.used_fraction(3.2) == 0.0
 
 
 def test_tracker_nan_rate_counts_as_silence():

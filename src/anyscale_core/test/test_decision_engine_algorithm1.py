@@ -12,7 +12,7 @@ def test_good_link_moves_amcl_then_ar_and_renews_their_leases(engine):
     first = engine.tick(reports(1.0), 1.0)
     assert [(e.kind, e.node, e.to_scale) for e in first.events] == [("migrate", "amcl", "laptop")]
     start, stop, renew = first.actions          # make before break: start first
-    assert start == StartNode("amcl", "laptop", (), 3.0)
+    assert start == StartNode("amcl", "laptop", (), 3.0, 36.0, 120.0)   # model CPU, memory
     # AMCL is declared pause_at_home: its robot instance is paused, not stopped.
     assert stop == StopNode("amcl", "robot", after_output_on="laptop", pause=True)
     assert renew == RenewLeases("laptop", ("amcl",), 3.0)

@@ -269,7 +269,7 @@ def test_the_wrapper_logs_an_unreadable_state_and_starts_fresh(testbed_ch, monke
 
 
 def test_the_wrapper_writes_on_change_and_refreshes_while_nodes_are_out(testbed_ch,
-                                                                         monkeypatch):
+                                                                        monkeypatch):
     fake = FakeRospy()
     writes = []
     monkeypatch.setattr(decision_ros, "rospy", fake)

@@ -21,7 +21,7 @@ def test_a_node_that_failed_where_it_runs_is_started_there_again(engine, testbed
     result = engine.tick(r, 9.0)
     assert ("restart", "ekf", "robot", "robot") in [(e.kind, e.node, e.from_scale, e.to_scale)
                                                     for e in result.events]
-    assert StartNode("ekf", "robot", (), 0.0) in result.actions
+    assert StartNode("ekf", "robot", (), 0.0, 5.0, 55.0) in result.actions
     assert "ended on robot: signal 11" in [e.reason for e in result.events if e.node == "ekf"]
     # A remote node is started again on its remote scale, with a lease and its last state.
     plain = dataclasses.replace(testbed_ch.model.node("amcl").launch, pause_at_home=False)

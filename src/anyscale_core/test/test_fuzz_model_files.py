@@ -32,7 +32,8 @@ HOSTILE = st.one_of(
     st.none(), st.booleans(), st.just(math.nan), st.just(math.inf), st.just(-math.inf),
     st.just(1e308), st.just(10 ** 400), st.just(-10 ** 30), st.integers(-5, 5),
     st.text(max_size=12), st.just("\u202e\u0000\ud7ff nodé"), st.just(""),
-    st.lists(st.integers(), max_size=3), st.dictionaries(st.text(max_size=3), st.integers(), max_size=2))
+    st.lists(st.integers(), max_size=3),
+    st.dictionaries(st.text(max_size=3), st.integers(), max_size=2))
 
 
 def _write(data: bytes) -> str:
@@ -125,7 +126,8 @@ def test_hostile_value_anywhere_in_the_model(path, value):
 
 
 @pytest.mark.parametrize("edit", ["duplicate_node", "self_connection", "duplicate_scale",
-                                  "deep_nesting", "alias_bomb", "huge_integer", "nul_byte"])
+                                  "deep_nesting", "alias_bomb", "huge_integer", "nul_byte",
+                                  "params_alias_bomb", "params_null"])
 def test_structural_attacks_on_the_model(edit):
     tree = copy.deepcopy(TESTBED_TREE)
     if edit == "duplicate_node":
@@ -137,12 +139,21 @@ def test_structural_attacks_on_the_model(edit):
         c["subscriber"] = c["publisher"]
     elif edit == "huge_integer":
         tree["connections"][0]["freq_min"] = 10 ** 400   # math.isfinite raised OverflowError
+    elif edit == "params_alias_bomb":
+        # 9**9 values behind a few aliases: passed `anyscale check`, and the agent expanded
+        # them into parameters at every start of the node.
+        bomb = ["x"] * 9
+        for _ in range(8):
+            bomb = [bomb] * 9
+        tree["nodes"][9]["launch"]["params"] = {"bomb": bomb}
+    elif edit == "params_null":
+        tree["nodes"][9]["launch"]["params"] = {"empty": None}   # no ROS parameter is null
     if edit == "deep_nesting":
         text = b"nodes: " + b"[" * 20000 + b"]" * 20000 + b"\n"
     elif edit == "alias_bomb":
         text = b"a: &a [x, x, x, x, x, x, x, x, x]\n" + b"".join(
-            b"%c: &%c [*%c, *%c, *%c, *%c, *%c, *%c, *%c, *%c, *%c]\n" % ((ord("b") + i, ord("b") + i)
-                                                                            + (ord("a") + i,) * 9)
+            b"%c: &%c [*%c, *%c, *%c, *%c, *%c, *%c, *%c, *%c, *%c]\n"
+            % ((ord("b") + i, ord("b") + i) + (ord("a") + i,) * 9)
             for i in range(8)) + b"nodes: *i\n"
     elif edit == "nul_byte":
         text = TESTBED_BYTES.replace(b"robot", b"rob\x00t", 1)   # was a two-line message
@@ -158,8 +169,8 @@ def test_structural_attacks_on_the_model(edit):
         os.remove(path)
 
 
-STATE_VALUES = st.one_of(HOSTILE, st.dictionaries(st.sampled_from(["robot", "laptop", "x"]), HOSTILE,
-                                                  max_size=3))
+STATE_VALUES = st.one_of(HOSTILE, st.dictionaries(st.sampled_from(["robot", "laptop", "x"]),
+                                                  HOSTILE, max_size=3))
 
 
 @FUZZ

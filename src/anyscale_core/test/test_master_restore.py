@@ -22,8 +22,8 @@ def test_another_pid_or_another_run_id_is_a_new_master_and_run_id_appearing_is_n
 
 
 def test_missing_parameters_are_put_back_and_the_new_masters_own_are_kept():
-    saved = {"run_id": "old", "rosversion": "1.15.14", "amcl": {"min_particles": 500,
-                                                                 "laser": {"beams": 30}},
+    saved = {"run_id": "old", "rosversion": "1.15.14",
+             "amcl": {"min_particles": 500, "laser": {"beams": 30}},
              "anyscale": {"model": "/m.yaml"}}
     current = {"run_id": "new", "rosversion": "1.15.15", "amcl": {"min_particles": 100}}
     assert missing_params(saved, current) == [("/amcl/laser", {"beams": 30}),

@@ -14,7 +14,7 @@ def test_testbed_loads(testbed):
     assert len(testbed.nodes) == 11
     assert len(testbed.connections) == 8
     amcl = testbed.node("amcl")
-    assert amcl.launch.package == "anyscale_nav_demo"
+    assert amcl.launch.package == "paper_app"
     assert amcl.state_handoff.kind == "pose"
     assert amcl.launch.warm_start and not testbed.node("laser").launch.warm_start
     assert amcl.launch.nice == 0 and testbed.node("ar_recognition").launch.nice == 5
@@ -31,6 +31,9 @@ BAD_MODELS = [
     (("network", "max_bandwidth_mbps"), "fast", "network.max_bandwidth_mbps", "number"),
     (("nodes", 1, "name"), "laser", "nodes[1].name", "duplicate node name"),
     (("nodes", 1, "name"), "bad name", "nodes[1].name", "ROS node name"),
+    # `$` matched before a trailing newline: the CLI took a name the agent refuses.
+    (("nodes", 1, "name"), "laser\n", "nodes[1].name", "ROS node name"),
+    (("nodes", 9, "launch", "package"), "anyscale_nav_demo\n", "launch.package", "package name"),
     (("nodes", 9, "name"), "amcl__laptop", "nodes[9].name", "reserved for the names instances"),
     (("nodes", 9, "cpu_usage", "robot"), 150, "nodes[9] (amcl).cpu_usage.robot", "<= 100"),
     (("nodes", 9, "cpu_usage", "robot"), -5, "nodes[9] (amcl).cpu_usage.robot", ">= 0"),

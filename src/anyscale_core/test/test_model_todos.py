@@ -35,7 +35,7 @@ def test_a_draft_with_todos_loads_and_says_where_they_were():
     assert "nodes.relay.cpu_usage.laptop" in loaded.todos
     assert "connections.talker:relay:/chatter.tolerance" in loaded.todos
     assert "scales.laptop.cores" in loaded.todos and "nodes.talker.pinned" in loaded.todos
-    assert not loaded.is_todo("connections.talker:relay:/chatter.freq_opt")
+    assert "connections.talker:relay:/chatter.freq_opt" not in loaded.todos
     # Unknown tolerance counts as migratable, so both scales get profiled.
     assert model.connections[0].tolerance > 0
     assert model.node("talker").pinned is None

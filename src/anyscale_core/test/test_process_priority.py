@@ -6,8 +6,18 @@ import sys
 import textwrap
 
 CHILD = textwrap.dedent("""
-    import threading, time
-    from anyscale_core.process_priority import set_own_nice, thread_nices
+    import os, threading, time
+    from anyscale_core.process_priority import set_own_nice, thread_ids
+
+    def thread_nices():
+        nices = []
+        for tid in thread_ids():
+            try:
+                nices.append(os.getpriority(os.PRIO_PROCESS, tid))
+            except ProcessLookupError:
+                pass        # the thread (the one that asked) ended meanwhile
+        return nices
+
     threading.Thread(target=time.sleep, args=(5,), daemon=True).start()
     error = set_own_nice(int(sys.argv[1]))
     late = []

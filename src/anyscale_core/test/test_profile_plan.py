@@ -24,7 +24,7 @@ def test_testbed_plan_measures_everything_home_then_moves_only_migratable(testbe
     assert moved == [("amcl", "laptop"), ("ar_recognition", "laptop")]
     # Critical nodes have a laptop figure in the file, but may never run there.
     assert {(n, s) for n, s, _ in plan.skipped} == {("odometry", "laptop"), ("ekf", "laptop"),
-                                                     ("navigation", "laptop")}
+                                                    ("navigation", "laptop")}
     assert all("critical" in why for _, _, why in plan.skipped)
     assert plan.scales_needed == ("robot", "laptop")
 

@@ -42,6 +42,8 @@ def test_scale_report_keeps_live_model_nodes_and_effective_rates():
     assert r.topic_rates["/never"] == 0.0
     assert r.topic_silence == {"/scan": pytest.approx(0.05), "/amcl_pose": 2.0, "/never": math.inf}
     assert r.link_up and r.bandwidth_mbps == 12.5
+    assert r.cpu_held == 0.0                                     # a scale of its own
+    assert conv.scale_report_from_msg(status(cpu_held_percent=60.0), 12.0, names).cpu_held == 60.0
 
 
 def test_a_report_is_dated_by_its_stamp_not_by_its_arrival():
@@ -142,7 +144,7 @@ def test_params_defaults_and_errors():
     assert p.control_nice == 0
     assert read_params(params(model="/m.yaml", control_nice=-5)).control_nice == -5
     for bad in (3, -21, 1.5, "high", True):
-        with pytest.raises(ParamError, match="~control_nice: expected a nice value"):
+        with pytest.raises(ParamError, match="~control_nice: expected an integer >= -20 and <= 0"):
             read_params(params(model="/m.yaml", control_nice=bad))
 
 
@@ -154,6 +156,27 @@ def test_scale_report_names_the_nodes_that_ended_and_how():
                   NodeProcess(name="/user", state=NodeProcess.EXITED, exit_code=0),
                   NodeProcess(name="/amcl", state=NodeProcess.EXITED, exit_code=1)]
     r = conv.scale_report_from_msg(msg, 0.0, ["amcl", "ekf", "navigation", "user", "amcl_gone"])
-    # /amcl has a live instance; /amcl_gone's lease expired (the decision node's doing).
+    # /amcl has a live instance; /amcl_gone's lease expired: ended too, which matters where the
+    # node is due to run (the engine looks at that scale's report only).
     assert r.ended == {"ekf": "signal 11", "navigation": "exit code 1, log /logs/navigation.log",
-                       "user": "exit code 0"}
+                       "user": "exit code 0", "amcl_gone": "its lease ran out (exit code 0)"}
+
+
+def test_cost_estimates_message_and_when_it_is_sent_again():
+    from anyscale_core.cost_estimate import CostRow
+    from anyscale_core.placement_learning import PlacementRow
+    rows = [PlacementRow(CostRow("amcl", "laptop", 36.0, 80.2, 80.2, 12, True, 0.9), 9.4, 1,
+                         "laptop CPU 60 % + 80 % estimated for it"),
+            PlacementRow(CostRow("amcl", "robot", 50.0, 50.0, math.nan, 0, False, math.nan),
+                         0.0, 0, "")]
+    msg = conv.cost_estimates_msg(rows, 0)
+    [out, home] = msg.estimates
+    assert (out.node, out.scale, out.model_percent, out.live_percent, out.samples,
+            out.lower_bound, out.retry_in_s, out.failures) == \
+        ("amcl", "laptop", 36.0, 80.2, 12, True, 9.4, 1)
+    assert out.reason.startswith("laptop CPU") and math.isnan(home.measured_percent)
+    key = conv.cost_estimates_key(rows)
+    assert conv.cost_estimates_key([PlacementRow(rows[0].cost, 9.1, 1, rows[0].reason),
+                                    rows[1]]) == key          # the same to the second shown
+    assert conv.cost_estimates_key([PlacementRow(rows[0].cost, 8.9, 1, rows[0].reason),
+                                    rows[1]]) != key

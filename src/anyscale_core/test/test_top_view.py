@@ -6,8 +6,9 @@ import pytest
 pytest.importorskip("anyscale_msgs.msg")  # the built workspace's messages
 
 import rospy  # noqa: E402
-from anyscale_msgs.msg import (LinkStatistics, Mapping, MigrationEvent, NodeAssignment,  # noqa: E402
-                               NodeProcess, ScaleStatus, TopicStatistics)
+from anyscale_msgs.msg import (  # noqa: E402
+    LinkStatistics, Mapping, MigrationEvent, NodeAssignment, NodeProcess, ScaleStatus,
+    TopicStatistics)
 
 from anyscale_core.top_view import render  # noqa: E402
 
@@ -103,3 +104,35 @@ def test_a_paused_instance_is_listed_apart_and_never_hides_the_running_one(testb
         text = frame(testbed, statuses=statuses)
         assert row(text, "amcl").split()[2] == "RUNNING"
         assert "paused (resumed by a return): amcl on" in text and "(90 MB)" in text
+
+
+def test_the_live_cost_estimates_beside_the_models_figures(testbed):
+    from anyscale_msgs.msg import CostEstimate, CostEstimates
+    costs = CostEstimates(estimates=[
+        CostEstimate(node="amcl", scale="laptop", model_percent=36.0, live_percent=152.4,
+                     measured_percent=152.4, samples=40, lower_bound=True, retry_in_s=8.6,
+                     failures=2, reason="laptop CPU 60 % + 80 % estimated for it"),
+        CostEstimate(node="amcl", scale="robot", model_percent=50.0, live_percent=50.0,
+                     measured_percent=math.nan, samples=0)])
+    text = frame(testbed, costs=costs)
+    lines = text.splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.startswith("CPU COST"))
+    assert lines[head + 1].split() == ["amcl", "on", "laptop", "36", "152.4", "≥152.4", "40", "2",
+                                       "failed", "in", "a", "row,", "9", "s", "left:", "laptop",
+                                       "CPU", "60", "%", "+", "80", "%", "estimated", "for",
+                                       "it"]
+    assert lines[head + 2].split() == ["amcl", "on", "robot", "50", "50.0", "-", "0", "-"]
+    assert "CPU COST" not in frame(testbed)       # no decision node publishing them yet
+
+
+def test_the_link_ahead_of_each_remote_scale_from_the_decision_nodes_diagnostics(testbed):
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+    status = DiagnosticStatus(name="anyscale_decision: link ahead", hardware_id="anyscale_decision",
+                              message="amcl home: link ahead: 0.0 Mbit/s in 2.8 s")
+    status.values = [KeyValue("laptop", "24 Mbit/s for 12 s, then 0 Mbit/s (lost 100 %) from "
+                                        "12 s (at 0.40 m/s)")]
+    text = frame(testbed, link_ahead=status)
+    assert ("link ahead (laptop): 24 Mbit/s for 12 s, then 0 Mbit/s (lost 100 %) from 12 s "
+            "(at 0.40 m/s)") in text.splitlines()
+    assert "link ahead: amcl home: link ahead: 0.0 Mbit/s in 2.8 s" in text.splitlines()
+    assert "link ahead" not in frame(testbed)

@@ -29,4 +29,4 @@ if __name__ == "__main__":
     # A cardboard box against the south corridor wall, 10 m along (x0, y0, x1, y1).
     write("office_floor", office, [(c0 + 9.0, c0 - 1.0, c0 + 9.4, c0 - 0.6)])
     write("small_loop", make_loop_floor(side=6.0, corridor=2.0, room_depth=1.5, room_width=2.5,
-                                                 inner_rooms=False))
+                                        inner_rooms=False))

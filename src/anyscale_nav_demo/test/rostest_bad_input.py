@@ -59,7 +59,8 @@ class BadInput(unittest.TestCase):
         self.check("map_server", [], "map_file", "not set")
 
     def test_amcl_bad_particle_counts(self):
-        self.check("amcl", ["_min_particles:=900", "_max_particles:=100"], "min_particles", "max_particles")
+        self.check("amcl", ["_min_particles:=900", "_max_particles:=100"],
+                   "min_particles", "max_particles")
 
     def test_amcl_negative_sigma(self):
         self.check("amcl", ["_laser_sigma_hit:=-1"], "laser_sigma_hit", "> 0")

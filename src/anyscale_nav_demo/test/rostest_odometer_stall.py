@@ -31,7 +31,8 @@ class OdometerStall(unittest.TestCase):
     def test_backlog_gives_no_velocity_spike(self):
         rospy.init_node("odometer_stall")
         velocities = []
-        rospy.Subscriber("joint_states", JointState, lambda m: velocities.append(max(map(abs, m.velocity))))
+        rospy.Subscriber("joint_states", JointState,
+                         lambda m: velocities.append(max(map(abs, m.velocity))))
         pub = rospy.Publisher("/sim/encoders/ticks", Int64MultiArray, queue_size=100)
         start = rospy.get_time()
         ticks_per_s = WHEEL_RAD_S / (2 * math.pi) * TICKS_PER_REV

@@ -26,7 +26,8 @@ class SmallLoop(unittest.TestCase):
         rospy.Subscriber("/ar_markers", MarkerArray, lambda m: seen.update(k.id for k in m.markers))
         rospy.Subscriber("/navigation/status", String, lambda m: status.__setitem__(0, m.data))
         deadline = rospy.get_time() + rospy.get_param("~timeout", 180.0)
-        while not rospy.is_shutdown() and rospy.get_time() < deadline and not status[0].startswith("done"):
+        while (not rospy.is_shutdown() and rospy.get_time() < deadline
+               and not status[0].startswith("done")):
             rospy.sleep(0.5)
         self.assertEqual(status[0], "done 5/5", "navigation did not complete the loop in time")
         self.assertEqual(sorted(seen), [0, 1, 2, 3])
@@ -38,7 +39,8 @@ class SmallLoop(unittest.TestCase):
             e = np.array(est)
             err = localisation_errors(t[:, 0], t[:, 1:], e[:, 0], e[:, 1:])
             rms = float(np.sqrt(np.mean(err ** 2)))
-            rospy.loginfo("%s: RMS error %.3f m over %d poses, max %.3f m", name, rms, len(err), err.max())
+            rospy.loginfo("%s: RMS error %.3f m over %d poses, max %.3f m",
+                          name, rms, len(err), err.max())
             self.assertGreater(len(err), 50)
             self.assertLess(rms, limit, "%s RMS error %.3f m" % (name, rms))
 

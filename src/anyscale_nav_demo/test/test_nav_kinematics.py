@@ -44,7 +44,8 @@ def test_encoder_quantises_and_slips():
     ticks = enc.advance([2 * math.pi * 1.004, 0.0])
     assert ticks.tolist() == [100, 0]
     assert ticks_to_angles(ticks, 100)[0] == pytest.approx(2 * math.pi)
-    slips = [EncoderModel(4096, 0.05, np.random.default_rng(s)).advance([10.0, 10.0]) for s in range(20)]
+    slips = [EncoderModel(4096, 0.05, np.random.default_rng(s)).advance([10.0, 10.0])
+             for s in range(20)]
     counted = np.array(slips, dtype=float) / 4096 * 2 * math.pi
     assert counted.std() == pytest.approx(0.5, rel=0.4)      # 5 % of 10 rad, per wheel
 
@@ -64,7 +65,8 @@ def test_office_floor_loop_is_115_m_and_goals_are_free():
         assert m.free[r, c]
     assert [mk["id"] for mk in plan.markers] == [0, 1, 2, 3]
     for mk in plan.markers:                              # each marker sits on a wall face
-        c, r = m.world_to_cell(mk["x"] - 0.05 * math.cos(mk["yaw"]), mk["y"] - 0.05 * math.sin(mk["yaw"]))
+        c, r = m.world_to_cell(mk["x"] - 0.05 * math.cos(mk["yaw"]),
+                               mk["y"] - 0.05 * math.sin(mk["yaw"]))
         assert m.occupied[r, c]
 
 

@@ -18,6 +18,7 @@ PUBLISHES = {
     "initial_pose_publisher": {"/initialpose"}, "world_sim": {"/sim/ground_truth"},
     # anyscale_core's, on the test bed
     "configuration_path": {"/anyscale/configuration_path"},
+    "decision_node": {"/anyscale_decision/link_map"},
     "link_shaper": {"/anyscale/wifi/coverage", "/anyscale/wifi/access_point"},
 }
 
@@ -36,8 +37,10 @@ def test_testbed_model_matches_the_nodes():
         assert os.path.isfile(os.path.join(PKG, "nodes", n["launch"]["type"])), n["launch"]["type"]
     for c in model["connections"]:
         assert c["topic"] in PUBLISHES[nodes[c["publisher"]]["launch"]["type"]], c
-    assert nodes["amcl"]["cpu_usage"]["robot"] == 50 and nodes["ar_recognition"]["cpu_usage"]["robot"] == 33
-    rates = {(c["publisher"], c["subscriber"]): (c["freq_min"], c["freq_opt"]) for c in model["connections"]}
+    assert nodes["amcl"]["cpu_usage"]["robot"] == 50
+    assert nodes["ar_recognition"]["cpu_usage"]["robot"] == 33
+    rates = {(c["publisher"], c["subscriber"]): (c["freq_min"], c["freq_opt"])
+             for c in model["connections"]}
     assert rates[("amcl", "ekf")] == (2, 5) and rates[("odometer", "odometry")] == (10, 40)
 
 

@@ -19,7 +19,8 @@ ANGLES = np.linspace(-2.09, 2.09, 60)
 
 @pytest.fixture(scope="module")
 def floor():
-    return make_loop_floor(side=6.0, corridor=2.0, room_depth=1.5, room_width=2.5, inner_rooms=False)
+    return make_loop_floor(side=6.0, corridor=2.0, room_depth=1.5, room_width=2.5,
+                           inner_rooms=False)
 
 
 def scan_at(occ_map, pose, rng, noise=0.01):
@@ -180,7 +181,8 @@ def test_tracks_the_office_corridor_with_20_cm_between_updates():
     import os
     from anyscale_nav_demo.geometry import compose
     from anyscale_nav_demo.occupancy_map import load_map
-    m = load_map(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "maps", "office_floor.yaml"))
+    m = load_map(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "maps",
+                              "office_floor.yaml"))
     rng = np.random.default_rng(0)
     pf = ParticleFilter(LikelihoodField(m), rng)
     angles = np.linspace(-2.0944, 2.0944, 682)[::12]
@@ -193,7 +195,8 @@ def test_tracks_the_office_corridor_with_20_cm_between_updates():
         pf.predict(odom, new_odom)
         odom = new_odom
         laser = compose(truth, (0.2, 0.0, 0.0))
-        r = cast_rays(m.occupied, m.resolution, m.origin[:2], laser[0], laser[1], laser[2] + angles, 5.6)
+        r = cast_rays(m.occupied, m.resolution, m.origin[:2], laser[0], laser[1],
+                      laser[2] + angles, 5.6)
         pf.update(r, angles, (0.2, 0.0, 0.0))
         (x, y, _), _ = pf.estimate()
         errors.append(math.hypot(x - truth[0], y - truth[1]))
@@ -207,7 +210,8 @@ def test_beam_likelihood_in_blocks_equals_the_direct_formula(floor):
     f = LikelihoodField(floor.map, max_dist=2.0)
     rng = np.random.default_rng(4)
     n = BeamLikelihood.BLOCK * 2 + 37
-    particles = np.column_stack([rng.uniform(-3, 15, n), rng.uniform(-3, 15, n), rng.uniform(-4, 4, n)])
+    particles = np.column_stack([rng.uniform(-3, 15, n), rng.uniform(-3, 15, n),
+                                 rng.uniform(-4, 4, n)])
     ranges = rng.uniform(0.1, 6.0, len(ANGLES))
     ranges[::9] = np.inf
     offset, sigma, z_hit, z_rand, range_max = (0.2, 0.05, 0.1), 0.2, 0.95, 0.05, 5.6
@@ -221,10 +225,12 @@ def test_beam_likelihood_in_blocks_equals_the_direct_formula(floor):
     ly = particles[:, 1] + s * offset[0] + c * offset[1]
     th = particles[:, 2:3] + offset[2] + a
     d = f.distance_at(lx[:, None] + r * np.cos(th), ly[:, None] + r * np.sin(th))
-    expected = 1.0 + np.sum((z_hit * np.exp(-d * d / (2 * sigma ** 2)) + z_rand / range_max) ** 3, axis=1)
+    beam = z_hit * np.exp(-d * d / (2 * sigma ** 2)) + z_rand / range_max
+    expected = 1.0 + np.sum(beam ** 3, axis=1)
     assert got == pytest.approx(expected, rel=1e-12)
     assert len(set(np.round(got, 6))) > n // 2          # not one value for all
-    assert model.weights(particles[:10], ranges, ANGLES, offset, range_max) == pytest.approx(expected[:10])
+    assert (model.weights(particles[:10], ranges, ANGLES, offset, range_max)
+            == pytest.approx(expected[:10]))
 
 
 def test_update_is_due_after_enough_motion_or_turn():

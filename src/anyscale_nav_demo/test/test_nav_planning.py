@@ -106,17 +106,19 @@ def test_dwa_avoids_an_obstacle_the_map_does_not_have():
     x, y, _ = rollout((1.0, 3.0, 0.0), np.array([v]), np.array([w]), cfg.sim_time, 0.05)
     clear = np.min(np.hypot(x[0][:, None] - box[:, 0], y[0][:, None] - box[:, 1]))
     assert clear > cfg.robot_radius                # the chosen arc is collision free
-    fx, fy, _ = rollout((1.0, 3.0, 0.0), np.array([free[0]]), np.array([free[1]]), cfg.sim_time, 0.05)
-    assert np.min(np.hypot(fx[0][:, None] - box[:, 0], fy[0][:, None] - box[:, 1])) < cfg.robot_radius
+    fx, fy, _ = rollout((1.0, 3.0, 0.0), np.array([free[0]]), np.array([free[1]]),
+                        cfg.sim_time, 0.05)
+    free_clear = np.min(np.hypot(fx[0][:, None] - box[:, 0], fy[0][:, None] - box[:, 1]))
+    assert free_clear < cfg.robot_radius           # the arc chosen without the box hits it
     assert v > 0.0                                 # it keeps going, round the box or slower
 
 
 def test_dwa_reports_failure_when_boxed_in():
-    ring = np.array([[1 + 0.35 * math.cos(a), 3 + 0.35 * math.sin(a)] for a in np.linspace(0, 6.28, 60)])
+    ring = np.array([[1 + 0.35 * math.cos(a), 3 + 0.35 * math.sin(a)]
+                     for a in np.linspace(0, 6.28, 60)])
     path = np.column_stack([np.linspace(1, 9, 80), np.full(80, 3.0)])
     v, w, ok = choose_velocity((1.0, 3.0, 0.0), (0.2, 0.0), path, open_costmap(), ring, DWAConfig())
     assert not ok and v == 0.0 and w == 0.0
-
 
 
 def test_scan_obstacle_points_keep_near_returns_in_the_map_frame():

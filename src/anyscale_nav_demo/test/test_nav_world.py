@@ -45,7 +45,7 @@ def test_body_follows_wheels_and_stops_at_walls():
 
 
 def test_unequal_wheels_drift():
-    """Real wheels 0.4 % apart curve a 'straight' drive: the drift odometry must be corrected for."""
+    """Real wheels 0.4 % apart curve a 'straight' drive: a drift the odometry must correct for."""
     body = DiffDriveBody((0.0, 0.0, 0.0), 0.05 * 1.004, 0.05 * 0.997, 0.32, motor_time_constant=0.0)
     for _ in range(2000):
         body.step([8.0, 8.0], 0.01, lambda x, y: 10.0)

@@ -145,8 +145,8 @@ def test_the_tolerance_bench_finds_the_quota_before_each_run(tolerances, tmp_pat
     assert [os.path.relpath(a[a.index("--out") + 1], out) for a in argvs] == [
         "run01-calibration/run1", "run01-calibration/run2", "run01", "run02-calibration/run1",
         "run02"]
-    assert [a[a.index("--robot-cpu") + 1] for a in argvs] == ["0.34", "0.288", "0.288", "0.288",
-                                                             "0.288"]
+    assert [a[a.index("--robot-cpu") + 1] for a in argvs] == [
+        "0.34", "0.288", "0.288", "0.288", "0.288"]
     assert "[1/2] start at goal 0, seed 11, robot 0.288 cores" in capsys.readouterr().out
     # The calibration runs record what the runs record: the same load on the robot's quota.
     assert all(a[a.index("--record-inputs") + 1] == tolerances.DEFAULT_INPUTS for a in argvs)
@@ -225,3 +225,42 @@ def test_the_profile_bench_compares_at_equal_host_speed(tmp_path, monkeypatch):
     figures, host_ms = bench.calibration_side_by_side(0.34, 0.9, str(tmp_path))
     assert figures[("amcl", "robot")] == (7.7, 4.2)
     assert host_ms["robot"] == 6.9 and math.isnan(host_ms["laptop"])
+
+
+def test_the_learning_bench_runs_both_modes_alike_but_for_the_model_costs(monkeypatch, tmp_path):
+    from anyscale_testbed.testbed_record import EventRecord
+    bench = load_bench("bench_learning")
+    argvs = []
+
+    def fake_run(argv, out_dir):
+        argvs.append(argv)
+        model = "--model-costs" in argv
+        done_t = 110.0 if model else 100.0
+        rec = TestbedRecord(navigation_status=[(10.0, "goal 1"), (done_t, "done 5/5")])
+        rec.events = [EventRecord(20.0, "migrate", "amcl", "robot", "laptop", "room", 0.5, True,
+                                  20.0),
+                      EventRecord(30.0, "migrate_back", "amcl", "laptop", "robot",
+                                  "connection spending its tolerance: laser->amcl", 0.2, True,
+                                  30.0)]
+        os.makedirs(os.path.join(out_dir, "office_floor-fake"))
+        rec.finished_t = 120.0
+        rec.save(os.path.join(out_dir, "office_floor-fake", "record.json"))
+        return 0
+    monkeypatch.setattr(bench, "run_logged", fake_run)
+    monkeypatch.setattr(bench, "start_on_the_testbed", lambda program: None)
+    monkeypatch.setattr(bench, "quota_cores", lambda robot, laptop: (0.34, 0.9))
+    assert bench.main(["--pairs", "2", "--seed", "3", "--out", str(tmp_path)]) == 0
+    assert [("--model-costs" in a) for a in argvs] == [False, True, True, False]
+    for argv in argvs:
+        assert argv[argv.index("--seed") + 1] == "3"
+        assert argv[argv.index("--robot-cpu") + 1] == "0.34"
+    table = (tmp_path / "learning.txt").read_text()
+    assert "pair 1: learning / model path time 0.900; moves 2 / 2" in table
+    assert table.splitlines()[1].split() == ["1", "learning", "90.0", "1", "1", "1", "0"]
+
+
+def test_the_learning_bench_names_a_bad_argument(capsys):
+    bench = load_bench("bench_learning")
+    with pytest.raises(SystemExit):
+        bench.parse_args(["--robot-cpu", "0"])
+    assert "--robot-cpu: expected cores > 0, got 0" in capsys.readouterr().err

@@ -85,7 +85,8 @@ def test_an_interrupted_bench_ends_its_run_even_where_sigint_is_ignored(tmp_path
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
     log = tmp_path / "console.log"
     deadline = time.monotonic() + 10
-    while time.monotonic() < deadline and "running" not in (log.read_text() if log.exists() else ""):
+    while (time.monotonic() < deadline
+           and "running" not in (log.read_text() if log.exists() else "")):
         time.sleep(0.05)
     proc.send_signal(signal.SIGTERM)
     assert proc.wait(timeout=10) == 130

@@ -2,6 +2,7 @@
 --normalise-cpu and the calibration's reference_cpu_ms it needs."""
 import pytest
 
+from anyscale_testbed import demo_run
 from anyscale_testbed.demo_run import parse_args, robot_launch_args
 
 
@@ -78,7 +79,8 @@ def test_the_start_line_states_the_quotas_and_when_they_start_to_follow_the_host
 
 def test_record_inputs_are_a_list_of_topics_and_a_bad_one_is_one_line(capsys):
     assert parse_args([], "out").record_inputs == []
-    assert parse_args(["--record-inputs", "/scan, /odom,"], "out").record_inputs == ["/scan", "/odom"]
+    assert parse_args(["--record-inputs", "/scan, /odom,"], "out").record_inputs == [
+        "/scan", "/odom"]
     with pytest.raises(SystemExit) as ended:
         parse_args(["--record-inputs", "/scan,odom"], "out")
     assert ended.value.code == 2
@@ -176,7 +178,8 @@ def test_loops_repeat_the_loop_from_where_the_robot_starts():
     start, goals = world_start("small_loop")
     assert goals is None                      # navigation reads the world's own goals
     start2, twice = world_start("small_loop", None, 2)
-    assert start2 == start and len(twice) % 2 == 0 and twice[:len(twice) // 2] == twice[len(twice) // 2:]
+    half = len(twice) // 2
+    assert start2 == start and len(twice) % 2 == 0 and twice[:half] == twice[half:]
     assert twice[-1][:3] == start             # the world's last goal is its start
     at1, loop = world_start("small_loop", 1, 3)
     assert len(loop) == 3 * (len(twice) // 2) and loop[-1][:3] == at1
@@ -188,6 +191,7 @@ def test_the_holds_and_the_late_boost_reach_robot_launch_only_when_given():
                                          "20", "--late-boost-fraction", "0"], "out")) == [
         "late_boost_fraction:=0", "hold_after_loss_s:=30.0",
         "node_hold_after_loss_s:={amcl: 20.0}"]
+    assert robot_launch_args(parse_args(["--model-costs"], "out")) == ["learn_costs:=false"]
 
 
 def test_a_late_boost_fraction_outside_0_1_is_one_line(capsys):
@@ -195,3 +199,62 @@ def test_a_late_boost_fraction_outside_0_1_is_one_line(capsys):
         parse_args(["--late-boost-fraction", "1.5"], "out")
     assert ended.value.code == 2
     assert "--late-boost-fraction: expected 0-1, got 1.5" in capsys.readouterr().err
+
+
+def test_the_weak_link_reaches_robot_launch_only_when_given(capsys):
+    assert robot_launch_args(parse_args(["--weak-link-mbps", "0"], "out")) == [
+        "weak_link_mbps:=0"]
+    with pytest.raises(SystemExit):
+        parse_args(["--weak-link-mbps", "-1"], "out")
+    assert "--weak-link-mbps: expected 0 or more Mbit/s, got -1" in capsys.readouterr().err
+
+
+def test_no_forecast_reaches_robot_launch_only_when_given():
+    assert "link_forecast:=false" not in robot_launch_args(parse_args([], "out"))
+    assert robot_launch_args(parse_args(["--no-forecast"], "out")) == ["link_forecast:=false"]
+    # A scheduled link follows the clock, not the place: a link map would mislead.
+    for link in ("schedule", "unshaped"):
+        assert robot_launch_args(parse_args(["--link", link], "out")) == ["link_forecast:=false"]
+
+
+def test_a_link_map_to_start_from_must_load_else_one_line(tmp_path, capsys):
+    from anyscale_core.link_map import LinkMap
+    good = str(tmp_path / "link_map.yaml")
+    m = LinkMap()
+    m.add("laptop", 1.8e9, 1.0, 1.0, 20.0, False)
+    m.save(good)
+    assert parse_args(["--link-map", good], "out").link_map == good
+    for bad, says in ((str(tmp_path / "none.yaml"), "none.yaml: no such file"),
+                      (__file__, "expected a mapping")):
+        with pytest.raises(SystemExit) as ended:
+            parse_args(["--link-map", bad], "out")
+        assert ended.value.code == 2
+        assert f"--link-map: {bad}" in capsys.readouterr().err
+
+
+def test_the_learned_map_is_copied_where_asked(tmp_path, capsys):
+    from anyscale_testbed.demo_run import LINK_MAP, keep_link_map
+    keep_link_map(str(tmp_path), str(tmp_path / "kept.yaml"))
+    assert "the run saved no link map" in capsys.readouterr().out
+    (tmp_path / LINK_MAP).write_text("format: anyscale_link_map\n")
+    keep_link_map(str(tmp_path), str(tmp_path / "kept.yaml"))
+    assert (tmp_path / "kept.yaml").read_text() == "format: anyscale_link_map\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["kept.yaml", LINK_MAP]
+
+
+@pytest.mark.parametrize("ended_by, cut_short", [("done", False), ("duration", False),
+                                                 ("", False), ("shutdown", True)])
+def test_a_run_cut_short_by_its_world_is_named_a_failure(tmp_path, ended_by, cut_short):
+    """roslaunch exits 0 when a required node dies: the record says how the run ended."""
+    from anyscale_testbed.testbed_record import TestbedRecord
+    path = str(tmp_path / "record.json")
+    TestbedRecord(world="small_loop", finished_t=2.0, ended_by=ended_by).save(path)
+    why = demo_run.ended_early(path)
+    assert bool(why) == cut_short, why
+    if cut_short:
+        assert "after 2.0 s" in why and "required node of the world" in why
+
+
+def test_a_run_without_a_readable_record_is_named_a_failure(tmp_path):
+    why = demo_run.ended_early(str(tmp_path / "record.json"))
+    assert "no readable record" in why and "record.json" in why

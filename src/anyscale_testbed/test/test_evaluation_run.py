@@ -7,7 +7,7 @@ import shutil
 import numpy as np
 import pytest
 
-from anyscale_testbed import evaluation_run, quota_for_the_day
+from anyscale_testbed import evaluation_figures, evaluation_run, quota_for_the_day
 from anyscale_testbed.evaluation_figures import AMCL_ON_LAPTOP, BOTH_ON_ROBOT
 from anyscale_nav_demo.results import configuration_runs
 from anyscale_testbed.evaluation_run import (amcl_bandwidth_mbps, evaluation_plan, parse_args,
@@ -248,6 +248,7 @@ def test_fig5_colours_the_paths_by_configuration(tmp_path, monkeypatch):
                                ["--world", "small_loop", "--seeds", "1", "--runs", "paper",
                                 "--robot-cpu", "0.34", "--out", out]) == 0
     image = matplotlib.image.imread(os.path.join(out, "fig5_paths.png"))[:, :, :3]
+
     def has(colour):
         rgb = np.array([int(colour[i:i + 2], 16) / 255 for i in (1, 3, 5)])
         return bool(np.any(np.all(np.abs(image - rgb) < 0.02, axis=2)))
@@ -314,3 +315,63 @@ def test_robot_cpu_auto_calibrates_each_pair_to_the_premise_and_keeps_it(
     fake.argvs.clear()
     assert evaluation_run.main("unused", "/nonexistent/run_testbed.py", argv) == 0
     assert [a[a.index("--robot-cpu") + 1] for a in fake.argvs][0] == "0.288"
+
+
+def test_laps_and_the_link_forecast_options_reach_the_runs(tmp_path, capsys):
+    from anyscale_core.link_map import LinkMap
+    plan = evaluation_plan([1])
+    plain = parse_args([], "out")
+    for run in plan:
+        argv = run_argv(run, plain, "run_testbed.py", "out/x")
+        assert not {"--loops", "--no-forecast", "--link-map"} & set(argv)
+    saved = tmp_path / "earlier" / "pair1-paper" / "office_floor-coverage-seed1-x"
+    saved.mkdir(parents=True)
+    m = LinkMap()
+    m.add("laptop", 1.8e9, 1.0, 1.0, 20.0, False)
+    m.save(str(saved / "link_map.yaml"))
+    for link_map, expected in ((str(saved / "link_map.yaml"), str(saved / "link_map.yaml")),
+                               (str(tmp_path / "earlier"), str(saved / "link_map.yaml"))):
+        args = parse_args(["--laps", "2", "--no-forecast", "--link-map", link_map], "out")
+        for run in plan:
+            argv = run_argv(run, args, "run_testbed.py", "out/x")
+            assert argv[argv.index("--loops") + 1] == "2"
+            assert argv[-len(run.argv):] == run.argv
+            test = run.kind in ("paper", "paper_local", "optimal")
+            assert ("--no-forecast" in argv) == test, run.key
+            if run.key == "pair1-paper" or test and not os.path.isdir(link_map):
+                assert argv[argv.index("--link-map") + 1] == expected
+            else:           # no test, or a test whose namesake saved no map there
+                assert "--link-map" not in argv
+    # A directory without the namesake's map: that test starts from an empty map, said so.
+    args = parse_args(["--link-map", str(tmp_path / "earlier")], "out")
+    other = evaluation_run.seeded_test("paper", 2)
+    assert "--link-map" not in run_argv(other, args, "run_testbed.py", "out/x")
+    assert "paper-seed2: no link map in" in capsys.readouterr().out
+    for bad, says in ((["--laps", "0"], "--laps: expected 1 to 20"),
+                      (["--link-map", str(tmp_path / "nope.yaml")], "nope.yaml: no such file")):
+        with pytest.raises(SystemExit):
+            parse_args(bad, "out")
+        assert says in capsys.readouterr().err
+
+
+def test_returns_are_marked_where_the_robot_was(tmp_path):
+    from anyscale_testbed.testbed_record import (LINK_AHEAD_RETURN, LINK_LOSS_RETURN,
+                                                 EventRecord)
+    rec = record()
+    rec.events = [EventRecord(40.0, "migrate_back", "amcl", "laptop", "robot",
+                              "link to laptop down", 0.3, True, 40.0),
+                  EventRecord(70.0, "migrate_back", "amcl", "laptop", "robot",
+                              "link ahead: 0.0 Mbit/s in 2.8 s", 0.3, True, 70.0),
+                  EventRecord(50.0, "migrate", "amcl", "robot", "laptop", "x", 0.3, True, 50.0),
+                  EventRecord(200.0, "migrate_back", "amcl", "laptop", "robot",
+                              "link to laptop down", 0.3, True, 200.0)]   # after the mission
+    marks = evaluation_figures.returns_along_path(rec)
+    assert [k for _, _, k in marks] == [LINK_LOSS_RETURN, LINK_AHEAD_RETURN]
+    x_at = dict((t, x) for t, x, _ in rec.truth)
+    assert marks[0][:2] == (pytest.approx(x_at[40.0]), 0.0)
+    from anyscale_testbed.evaluation_plots import draw_fig5
+    png = str(tmp_path / "fig5.png")
+    xy = np.array([[0.0, 0.0], [1.0, 0.0]])
+    draw_fig5(png, np.zeros((10, 10), bool), np.zeros((10, 10), bool), 0.5, (0.0, 0.0),
+              [("t", xy, [BOTH_ON_ROBOT] * 2, [(0.5, 0.0, LINK_LOSS_RETURN)])])
+    assert os.path.getsize(png) > 0

@@ -3,7 +3,7 @@ to the cause that held at each step, and the moves out cost the seconds until th
 up."""
 import pytest
 
-from anyscale_testbed.evaluation_figures import path_steps
+from anyscale_testbed.path_steps import path_steps
 from anyscale_testbed.evaluation_shortfall import (HOLD, HYSTERESIS, OTHER, START, WEAK,
                                                    PolicyParams, shortfall)
 from anyscale_testbed.testbed_record import EventRecord, TestbedRecord, mapping_at

@@ -8,10 +8,10 @@ import pytest
 
 from anyscale_testbed.evaluation_figures import (AMCL_ON_LAPTOP, AR_ON_LAPTOP, BOTH_ON_LAPTOP,
                                                  BOTH_ON_ROBOT, configuration_of,
-                                                 configuration_shares,
-                                                 configurations_along_path, coverage_bound,
+                                                 configuration_shares, coverage_bound,
                                                  mean_abs_omega_deg_s, run_figures,
                                                  turning_per_metre_deg)
+from anyscale_testbed.path_steps import configurations_along_path
 from anyscale_testbed.evaluation_table import (baseline_of, bound_share, format_markdown,
                                                format_table, gain, paired_baseline,
                                                paired_bound_share, paired_gain,

@@ -6,14 +6,13 @@ import time
 
 import pytest
 
-from anyscale_testbed.host_speed import (FIXED_QUOTA_TESTS_MAX_MS, CpuNormaliser,
-                                         HostSpeedMonitor, RollingMedian, idle_cpu_ms,
-                                         normalised_cores, reference_workload,
-                                         too_slow_for_fixed_quotas, workload_cpu_ms)
+from anyscale_testbed.host_speed import (REFERENCE_IDLE_MS, CpuNormaliser, HostSpeedMonitor,
+                                         RollingMedian, host_factor, idle_cpu_ms,
+                                         normalised_cores, reference_workload, workload_cpu_ms)
 from anyscale_testbed.two_scale_testbed import CpuQuota
 
 
-# --- the gate of the system tests at fixed quotas ---------------------------------------------
+# --- the idle reading and the host factor ---------------------------------------------
 def test_the_idle_reading_is_the_median_of_its_samples():
     readings = iter([9.0, 45.0, 10.0, 11.0, 8.0])
     assert idle_cpu_ms(5, lambda: next(readings)) == 10.0
@@ -21,12 +20,10 @@ def test_the_idle_reading_is_the_median_of_its_samples():
         idle_cpu_ms(0)
 
 
-def test_a_host_as_fast_as_the_green_runs_passes_the_gate_and_a_slow_one_is_told_why():
-    assert too_slow_for_fixed_quotas(10.7) is None            # 2026-11-24, idle
-    assert too_slow_for_fixed_quotas(FIXED_QUOTA_TESTS_MAX_MS) is None
-    why = too_slow_for_fixed_quotas(43.2)                      # 2026-11-28, idle
-    assert "43.2 ms" in why and f"{FIXED_QUOTA_TESTS_MAX_MS:g} ms" in why
-    assert too_slow_for_fixed_quotas(12.0, limit_ms=11.0) is not None
+def test_the_host_factor_is_the_reading_over_the_reference_day_and_never_below_one():
+    assert host_factor(REFERENCE_IDLE_MS) == 1.0
+    assert host_factor(7.0) == 1.0                      # a faster day changes nothing
+    assert host_factor(43.2) == pytest.approx(43.2 / REFERENCE_IDLE_MS)   # 2026-11-28, idle
 
 
 # --- normalised_cores -----------------------------------------------------------------------

@@ -198,9 +198,10 @@ def test_node_params_defaults_and_layout():
 
 @pytest.mark.parametrize("params,message", [
     (dict(mode="wifi"), r"~mode: expected one of coverage, schedule, got 'wifi'"),
-    (dict(access_point_y=1), r"~access_point_x: required in coverage mode"),
+    (dict(access_point_y=1), r"~access_point_x: required, not set"),
     (dict(access_point_x=1, access_point_y="x"), r"~access_point_y: expected a number"),
     (dict(mode="schedule"), r"~schedule must be a non-empty list"),
+    (dict(access_point_x=1, access_point_y=1, burst_kbit=0), r"~burst_kbit: expected an int"),
     (dict(access_point_x=1, access_point_y=1, rate_hz=0), r"~rate_hz: expected a number > 0"),
     (dict(access_point_x=1, access_point_y=1, burst_kbit=2.5), r"~burst_kbit: expected an int"),
     (dict(access_point_x=1, access_point_y=1, dry_run="yes"), r"~dry_run: expected true or"),

@@ -16,11 +16,12 @@ import pytest
 from anyscale_testbed.bench_runs import interrupt_then_kill
 from anyscale_testbed.link_shaper import (LinkSetting, SettingTracker, apply_setting,
                                           link_setting_for)
+from anyscale_testbed.system_test_gate import NOT_RUN
 from anyscale_testbed.two_scale_testbed import (ScaleEnd, TwoScaleError, TwoScaleLayout,
                                                 TwoScaleTestbed, missing_capabilities, run)
 
 MISSING = missing_capabilities(need_cgroups=False)
-pytestmark = pytest.mark.skipif(bool(MISSING), reason="the link shaper's test bed needs " +
+pytestmark = pytest.mark.skipif(bool(MISSING), reason=NOT_RUN + "this machine lacks " +
                                 "; ".join(MISSING))
 
 # Its own namespaces and interfaces, so it can run beside the other test-bed tests.
@@ -49,7 +50,7 @@ def link_state():
 
 
 def test_settings_reach_tc_and_the_link():
-    with TwoScaleTestbed(LAYOUT, cgroup_prefix="asls") as bed:
+    with TwoScaleTestbed(LAYOUT, cgroup_prefix="asls"):
         tracker = SettingTracker()
         applied = []
         # Along a path: full rate, a lower 802.11g step, coverage lost, back at another step.
@@ -156,7 +157,8 @@ def test_node_publishes_coverage_for_the_true_pose(roscore, tmp_path):
     seen = json.loads(probe.stdout.strip().splitlines()[-1])
     assert (seen["near"], seen["far"]) == (27.0, 0.0), log
     coverage = seen["coverage"]
-    assert (coverage["size"], coverage["resolution"], coverage["frame_id"]) == ([20, 20], 0.5, "map")
+    assert (coverage["size"], coverage["resolution"], coverage["frame_id"]) == (
+        [20, 20], 0.5, "map")
     assert coverage["max"] == 100 and coverage["min"] >= 0
     assert seen["access_point"] == [2.0, 5.0]
     assert "wifi: 27.0 Mbit/s at (3.00, 5.00)" in log, log

@@ -72,6 +72,7 @@ def test_the_handover_silence_is_the_one_before_the_new_senders_first_message():
 def test_lines_name_the_worst_move_and_the_reference():
     lines = move_gap_lines([(1, record()), (2, record())])
     assert lines[0].startswith("amcl planned out: 2 moves, gap median 0.80 s")
-    assert lines[1].startswith("amcl link-loss return: 2 moves") and "worst 1.50 s (run 1" in lines[1]
+    assert lines[1].startswith("amcl link-loss return: 2 moves")
+    assert "worst 1.50 s (run 1" in lines[1]
     assert lines[2].startswith("amcl at home, nothing moving: longest silence per 4.0 s window")
     assert lines[2].endswith("worst 1.00 s")

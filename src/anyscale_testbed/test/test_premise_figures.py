@@ -101,6 +101,7 @@ def test_a_run_is_off_the_premise_beyond_the_margin_either_way():
 
 def test_the_end_table_states_the_premise_per_configuration_and_flags_a_robot_off_it():
     from anyscale_testbed.testbed_figures import premise_lines
+
     def run(home_period):
         poses = ([30 + home_period * i for i in range(int(30 / home_period))]
                  + [60 + 0.2 * i for i in range(200)])

@@ -31,7 +31,9 @@ def test_a_step_stays_within_the_bounds():
 
 def test_calibration_stops_once_settled_and_says_so():
     lines = []
-    machine = lambda q: 2.0 * (q - 0.10) / 0.17           # 2 Hz at 0.27 cores
+
+    def machine(q):
+        return 2.0 * (q - 0.10) / 0.17                    # 2 Hz at 0.27 cores
     quota, points = calibrate_quota(0.34, machine, lines.append)
     assert [p.quota for p in points][0] == 0.34 and quota == points[-1].quota
     assert settled(points[-1]) and not settled(points[0]) and len(points) <= 3

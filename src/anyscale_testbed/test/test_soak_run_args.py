@@ -7,7 +7,8 @@ from anyscale_testbed.soak_run import parse_args
 
 def test_the_cfs_period_is_the_kernels_unless_asked_for():
     assert parse_args(["--minutes", "1", "--seed", "1"]).cfs_period_ms == 100
-    assert parse_args(["--minutes", "1", "--seed", "1", "--cfs-period-ms", "10"]).cfs_period_ms == 10
+    asked = parse_args(["--minutes", "1", "--seed", "1", "--cfs-period-ms", "10"])
+    assert asked.cfs_period_ms == 10
 
 
 @pytest.mark.parametrize("argv,message", [

@@ -50,7 +50,8 @@ def test_a_warm_standby_counts_once_started(tmp_path):
         assert node_processes({"census_warm": "census_warm"}, MASTER)["census_warm"] == []
         standby.stdin.write(b"start\n")
         standby.stdin.close()
-        assert wait_for(lambda: len(node_processes({"census_warm": "census_warm"}, MASTER)["census_warm"]) == 1)
+        assert wait_for(lambda: len(node_processes({"census_warm": "census_warm"},
+                                                   MASTER)["census_warm"]) == 1)
     finally:
         standby.kill()
         standby.wait()
@@ -70,7 +71,6 @@ def test_a_paused_process_is_no_live_instance_and_is_reported_paused():
     finally:
         node.kill()
         node.wait()
-
 
 
 def census_pids():

@@ -282,3 +282,22 @@ def test_an_output_is_judged_once_the_subscribers_of_its_connection_run():
     rec_late = TestbedRecord(**{**rec.__dict__, "receipts": {"/ar_markers": under_way}})
     assert [(round(v.start_t, 1), round(v.silence_s, 1))
             for v in tolerance_violations(rec_late)] == [(25.9, 2.1)]
+
+
+def test_the_summary_lists_the_models_cpu_figures_beside_the_live_estimates(tmp_path):
+    rec = TestbedRecord(finished_t=300.0, cost_estimates=[
+        {"node": "amcl", "scale": "laptop", "model_percent": 36.0, "live_percent": 98.4,
+         "measured_percent": 152.3, "samples": 40, "lower_bound": True, "failures": 1},
+        {"node": "amcl", "scale": "robot", "model_percent": 50.0, "live_percent": 50.0,
+         "measured_percent": float("nan"), "samples": 0, "lower_bound": False, "failures": 0}])
+    path = str(tmp_path / "record.json")
+    rec.save(path)
+    text = format_summary(TestbedRecord.load(path), {}, {})
+    lines = text.splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.startswith("CPU cost per node and scale"))
+    assert lines[head + 1].split() == ["amcl", "laptop", "model", "36", "live", "98", "learned",
+                                       "≥152", "from", "40", "reports;", "1", "return(s)", "for",
+                                       "rate", "or", "CPU", "in", "a", "row"]
+    assert lines[head + 2].split() == ["amcl", "robot", "model", "50", "live", "50", "not",
+                                       "learned"]
+    assert "CPU cost" not in format_summary(TestbedRecord(finished_t=1.0), {}, {})

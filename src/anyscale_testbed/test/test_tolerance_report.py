@@ -104,7 +104,8 @@ def test_the_rate_with_every_node_on_one_scale_skips_each_spans_settling_and_sho
 def test_a_row_gives_the_home_rate_and_the_host_speed_of_a_normalised_run(tmp_path):
     rec = record(ticks(10.0, 310.0))
     rec.mappings = [(5.0, {"amcl": "robot"}, 0, 0)]      # home from 10 s, its first pose
-    rec.cpu_normalisation = [(5.0, 0.34, 0.9, 14.0), (10.0, 0.36, 0.9, 15.0), (15.0, 0.35, 0.9, 16.0)]
+    rec.cpu_normalisation = [(5.0, 0.34, 0.9, 14.0), (10.0, 0.36, 0.9, 15.0),
+                             (15.0, 0.35, 0.9, 16.0)]
     row = run_row(1, 0, 0, rec, seed=11)
     assert abs(row.home_hz["/amcl_pose"] - 5.0) < 0.05 and row.host_ms == 15.0
     line = format_table([row]).splitlines()[1]

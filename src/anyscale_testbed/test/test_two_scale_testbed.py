@@ -10,13 +10,14 @@ import time
 
 import pytest
 
+from anyscale_testbed.system_test_gate import NOT_RUN
 from anyscale_testbed.testbed_teardown import is_alive
 from anyscale_testbed.two_scale_testbed import (ScaleEnd, TwoScaleError, TwoScaleLayout,
                                                 TwoScaleTestbed, missing_capabilities, run,
                                                 WORLD_NICE, shape_commands)
 
 MISSING = missing_capabilities()
-needs_testbed = pytest.mark.skipif(bool(MISSING), reason="the test bed needs " +
+needs_testbed = pytest.mark.skipif(bool(MISSING), reason=NOT_RUN + "this machine lacks " +
                                    "; ".join(MISSING))
 
 LAYOUT = TwoScaleLayout(

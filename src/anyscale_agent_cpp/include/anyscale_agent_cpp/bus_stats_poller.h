@@ -1,4 +1,5 @@
-// Counting the inputs of the nodes this agent runs from their own XML-RPC getBusStats (a thread of its own).
+// Counting the inputs of the nodes this agent runs from their own XML-RPC getBusStats (a thread of
+// its own).
 #pragma once
 
 #include <condition_variable>
@@ -46,7 +47,8 @@ public:
 
   // `seen` gets the name of a node this agent runs when a counted topic received a message
   // from it (the start boost ends at a node's first output); called from the poll thread.
-  BusStatsPoller(double window_s, double period_s, double call_timeout_s, std::string caller_id, PublisherSeen seen);
+  BusStatsPoller(double window_s, double period_s, double call_timeout_s, std::string caller_id,
+                 PublisherSeen seen);
   ~BusStatsPoller();
   BusStatsPoller(const BusStatsPoller&) = delete;
   BusStatsPoller& operator=(const BusStatsPoller&) = delete;

@@ -1,4 +1,5 @@
-// What a node's own XML-RPC API says it received: parsing of getBusStats and getBusInfo replies (no roscpp).
+// What a node's own XML-RPC API says it received: parsing of getBusStats and getBusInfo
+// replies (no roscpp).
 #pragma once
 
 #include <xmlrpcpp/XmlRpcValue.h>

@@ -21,7 +21,8 @@ public:
   // Topics with at least one subscriber on this scale: a node this agent supervises
   // (`own_nodes`, fully qualified), or any node whose XML-RPC URI is on this host.
   // nullopt if the master cannot be asked or does not know this agent (graph_state.h).
-  std::optional<std::set<std::string>> localSubscribedTopics(const std::set<std::string>& own_nodes) const;
+  std::optional<std::set<std::string>> localSubscribedTopics(
+      const std::set<std::string>& own_nodes) const;
 
   struct Registration
   {

@@ -32,7 +32,8 @@ bool knowsAgent(const SystemState& state, const std::string& self);
 // Topics with a subscriber other than `self` for which `is_local(node)` holds (asked once per
 // node). nullopt if the master does not know the agent `self`: then its graph, empty or
 // nearly, says nothing about who subscribes here.
-std::optional<std::set<std::string>> localSubscribedTopics(const SystemState& state, const std::string& self,
-                                                           const std::function<bool(const std::string&)>& is_local);
+std::optional<std::set<std::string>> localSubscribedTopics(
+    const SystemState& state, const std::string& self,
+    const std::function<bool(const std::string&)>& is_local);
 
 }  // namespace anyscale_agent

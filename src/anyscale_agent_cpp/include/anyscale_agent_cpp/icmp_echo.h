@@ -87,7 +87,7 @@ double echoBandwidthMbps(std::size_t bytes, double bulk_rtt_s, double floor_rtt_
 // added to `floor`) and then one of `bulk_bytes` (at most `bulk_timeout_s`), measured against the
 // floor; NaN if the small one went unanswered. A bulk echo unanswered in time reads as if it had
 // taken `bulk_timeout_s`. Blocks for up to timeout_s + bulk_timeout_s.
-double measureEchoBandwidth(IcmpEcho& echo, std::size_t bulk_bytes, double timeout_s, double bulk_timeout_s,
-                            uint16_t* seq, RttFloor& floor);
+double measureEchoBandwidth(IcmpEcho& echo, std::size_t bulk_bytes, double timeout_s,
+                            double bulk_timeout_s, uint16_t* seq, RttFloor& floor);
 
 }  // namespace anyscale_agent

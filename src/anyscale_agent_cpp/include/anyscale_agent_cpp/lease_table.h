@@ -14,11 +14,13 @@ namespace anyscale_agent
 class LeaseTable
 {
 public:
-  // Grants or replaces the lease of `node`, ending at now + duration_s. duration_s <= 0 removes
-  // it: the node then runs until stopped.
+  // The lease of a new instance of `node`, ending at now + duration_s; duration_s <= 0: none,
+  // the instance runs until stopped. Only for an instance just started: a running one's lease
+  // only ever moves later (renew), or a request could end it early or take it away.
   void grant(const std::string& node, double now, double duration_s);
 
-  // Extends an existing lease; false if `node` holds none (it ran without a lease, or is gone).
+  // Moves the end of an existing lease to now + duration_s if that is later, never earlier;
+  // false if `node` holds none (it ran without a lease, or is gone): none is imposed.
   bool renew(const std::string& node, double now, double duration_s);
 
   void remove(const std::string& node);

@@ -13,8 +13,8 @@ namespace anyscale_agent
 struct LinkSample
 {
   bool up = false;
-  double rtt_s;        // NaN until a probe was answered
-  double rtt_mean_s;   // NaN until a probe was answered
+  double rtt_s;       // NaN until a probe was answered
+  double rtt_mean_s;  // NaN until a probe was answered
   double loss_ratio = 0.0;
   double bandwidth_mbps;  // NaN until a bulk probe was answered
   double last_answer_t;   // NaN if never answered
@@ -56,7 +56,8 @@ class LinkEstimator
 public:
   // A probe unanswered after `timeout_s` counts as lost; loss and mean RTT are over the last
   // `history` small probes; the link is down when nothing was answered for `timeout_s`.
-  explicit LinkEstimator(double timeout_s = 1.0, std::size_t history = 20, double bandwidth_smoothing = 0.5);
+  explicit LinkEstimator(double timeout_s = 1.0, std::size_t history = 20,
+                         double bandwidth_smoothing = 0.5);
 
   void sent(uint32_t seq, double t, uint32_t bytes, ProbeKind kind);
   // What was answered: unknown or already expired seqs are ignored (kSmall is returned).

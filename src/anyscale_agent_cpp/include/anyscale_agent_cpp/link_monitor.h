@@ -40,8 +40,8 @@ public:
   // clock `now`): the agent's other subscriptions across the link can die the same way, and are
   // renewed under the same rule (may_call_master: see renewWhenAsked).
   using RenewAlso = std::function<void(double now, const std::function<bool()>& may_call_master)>;
-  LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, std::string master_scale, LinkOptions options,
-              RenewAlso renew_also = {});
+  LinkMonitor(ros::NodeHandle nh, std::string scale, bool is_master, std::string master_scale,
+              LinkOptions options, RenewAlso renew_also = {});
   ~LinkMonitor();
   anyscale_msgs::LinkStatistics stats();
   // "ICMP echo to ADDRESS" or "ROS probes" (and why): how the bandwidth is measured.
@@ -49,12 +49,12 @@ public:
 
 private:
   void onProbe(const anyscale_msgs::LinkProbe::ConstPtr& probe);  // on the master: echo it
-  void onEcho(const anyscale_msgs::LinkProbe::ConstPtr& echo);     // elsewhere: an answer
+  void onEcho(const anyscale_msgs::LinkProbe::ConstPtr& echo);    // elsewhere: an answer
   void onTimer(const ros::SteadyTimerEvent&);
   void send(double t, ProbeKind kind);  // with mutex_ held
-  void subscribe();                      // probes on the master, echoes elsewhere
-  void resubscribeIfSilent(double t);    // timer thread: asks the renewal thread
-  void renewWhenAsked();                 // the renewal thread's loop
+  void subscribe();                     // probes on the master, echoes elsewhere
+  void resubscribeIfSilent(double t);   // timer thread: asks the renewal thread
+  void renewWhenAsked();                // the renewal thread's loop
   void measureByEcho();                 // the ICMP thread's loop
   static double now();
 
@@ -74,8 +74,9 @@ private:
   uint32_t seq_ = 0;
   double last_bulk_ = -1e9;
   bool peer_seen_ = false;
-  std::atomic<double> last_heard_{std::numeric_limits<double>::quiet_NaN()};  // last probe/echo [steady s]
-  const double started_at_;  // [steady s]
+  std::atomic<double> last_heard_{
+      std::numeric_limits<double>::quiet_NaN()};  // last probe/echo [steady s]
+  const double started_at_;                       // [steady s]
   std::atomic<double> resubscribed_at_{0.0};
   double silence_logged_ = std::numeric_limits<double>::quiet_NaN();  // start of the silence logged
   // Renewals in a thread of their own: a subscribe calls the master and waits as long as TCP

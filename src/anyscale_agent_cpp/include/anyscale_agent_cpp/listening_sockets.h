@@ -1,4 +1,5 @@
-// The TCP ports a process group listens on, from /proc: where a node's XML-RPC server may be (no ROS).
+// The TCP ports a process group listens on, from /proc: where a node's XML-RPC server may be
+// (no ROS).
 #pragma once
 
 #include <cstdint>
@@ -20,7 +21,8 @@ struct ListeningSocket
 
 // The listening TCP sockets held by the processes `pids` (their /proc/PID/fd), those without
 // accepted connections first, then by inode (creation order). Processes that vanish are skipped.
-std::vector<ListeningSocket> listeningSockets(const std::vector<int>& pids, const std::string& proc_root = "/proc");
+std::vector<ListeningSocket> listeningSockets(const std::vector<int>& pids,
+                                              const std::string& proc_root = "/proc");
 
 // The pids of the processes in process group `pgid` (a node started through a wrapper script
 // registers from a child).

@@ -25,7 +25,7 @@ struct NodeStateEntry
   std::vector<std::string> argv;  // what was exec'd (a warm standby's command line, if it was one)
   std::string log_file;
   std::string state = "running";  // one of kNodeStates
-  double lease_end_s = 0.0;       // CLOCK_MONOTONIC seconds (shared by all processes of a boot); 0: none
+  double lease_end_s = 0.0;  // CLOCK_MONOTONIC seconds (shared by all processes of a boot); 0: none
 
   bool operator==(const NodeStateEntry& o) const
   {
@@ -59,10 +59,11 @@ std::string formatNodeState(const NodeState& state);
 NodeState parseNodeState(const std::string& text, const std::string& source);
 
 // Writes `path` atomically (a temporary file beside it, then rename), so a reader sees the old
-// list or the new one, never half of one. False with the reason in *error.
+// list or the new one, never half of one; both names are resolved in the file's own directory
+// and no link is followed, so nothing outside it is written. False with the reason in *error.
 bool writeNodeStateFile(const std::string& path, const NodeState& state, std::string* error);
-// nullopt if there is no such file (a first start); throws NodeStateError if it is unreadable
-// or malformed.
+// nullopt if there is no such file (a first start); throws NodeStateError if it is unreadable,
+// malformed, a symbolic link, not a regular file, or another user's.
 std::optional<NodeState> readNodeStateFile(const std::string& path);
 
 // One state file kept current by threads that change the state under a lock of their own (the
@@ -105,7 +106,7 @@ private:
   uint64_t written_seq_ = 0;
   std::string error_;
   std::vector<std::string> notes_;
-  std::atomic<bool> failed_{ false };  // the last write failed (read by stage())
+  std::atomic<bool> failed_{false};  // the last write failed (read by stage())
 };
 
 // This boot's id, "" if the kernel does not say.

@@ -20,11 +20,8 @@ namespace anyscale_agent
 //
 // When late: once its output has been seen here, a node with an output tolerance Δ (the
 // model's connections) whose output has been silent for `late_fraction` x Δ is boosted until
-// its next message. On the robot held at its quota, AR recognition (nice 5, ~3 Hz, Δ 1 s)
-// runs with 0.1-0.2 s to spare at rest (gaps up to 0.89 s in 5 office-floor runs), and a
-// burst of work at nice 0 around a link loss held it silent 1.00 s (tolerance bench, seed
-// 25). A priority that follows the deadline gives the node the CPU when its Δ is at stake and
-// leaves the yielding order in place otherwise.
+// its next message: the node gets the CPU when its Δ is at stake, and the yielding order stays
+// in place otherwise (docs/design/agent.md, "Start boost and migration stops").
 //
 // Times are seconds on a monotonic clock supplied by the caller.
 class OutputBoosts
@@ -33,23 +30,18 @@ public:
   OutputBoosts() = default;
   OutputBoosts(int boost_nice, double boost_s, double late_fraction)
     : boost_nice_(boost_nice), boost_s_(boost_s), late_fraction_(late_fraction)
-  {
-  }
+  {}
 
   // The nice a node declared at `declared_nice` runs at while boosted: boost_nice below 0, or
-  // below its declared nice where that is lower. A node declared to yield (nice > 0) does not
-  // yield while its output is missing: AR recognition (nice 5), resumed beside AMCL by a link
-  // loss, ran at a quarter of AMCL's weight and took 0.7-1.25 s to its first output against its
-  // Δ of 1 s (office floor, 8 double returns, 3 over). Its first output costs a few frames, so
-  // the boost ends after a fraction of a second, not after boost_s (a boost of boost_s at
-  // AMCL's priority once took half the robot's CPU, and AMCL's return took 2.43 s).
+  // below its declared nice where that is lower: a node declared to yield does not yield while
+  // its output is missing (docs/design/agent.md, "Paused at home").
   int boostedNice(int declared_nice) const;
 
   // A change of a process's nice for the caller to make.
   struct Change
   {
     std::string name;
-    int pid;   // the process: the node may have been started again since
+    int pid;  // the process: the node may have been started again since
     int nice;
   };
 
@@ -70,7 +62,8 @@ public:
   // The boosts that ran out (nice back to declared) and the nodes whose output is late (nice
   // raised). `running(name, pid)` says whether that process still runs unpaused; entries of
   // one that does not are dropped.
-  std::vector<Change> update(double now, const std::function<bool(const std::string&, int)>& running);
+  std::vector<Change> update(double now,
+                             const std::function<bool(const std::string&, int)>& running);
 
   bool empty() const { return nodes_.empty(); }
   int lateBoosts() const { return late_boosts_; }  // counted since construction

@@ -14,7 +14,8 @@ namespace anyscale_agent
 
 // YAML as roslaunch's rosparam loader reads it: int, double, bool, string, list, map. $(find)
 // is substituted in strings. Throws ModelError for what XML-RPC cannot carry (e.g. null).
-XmlRpc::XmlRpcValue yamlToXmlRpc(const YAML::Node& node, const PackageLocator& locate, const std::string& where);
+XmlRpc::XmlRpcValue yamlToXmlRpc(const YAML::Node& node, const PackageLocator& locate,
+                                 const std::string& where);
 
 // Private parameters of node `node_name` (graph name without leading slash): the model's
 // `params`, then `overrides` (key -> YAML text) on top. With clear_first, the node's private
@@ -25,7 +26,8 @@ XmlRpc::XmlRpcValue yamlToXmlRpc(const YAML::Node& node, const PackageLocator& l
 // instance reads the private parameters the declared node would. Everything is converted
 // before anything is written, so a bad value leaves the server untouched. Throws ModelError.
 void setNodeParams(const std::string& node_name, const YAML::Node& params,
-                   const std::map<std::string, std::string>& overrides, const PackageLocator& locate, bool clear_first,
+                   const std::map<std::string, std::string>& overrides,
+                   const PackageLocator& locate, bool clear_first,
                    const std::string& copy_from = "");
 
 }  // namespace anyscale_agent

@@ -11,10 +11,10 @@ namespace anyscale_agent
 
 struct TcpEntry
 {
-  std::string local;    // "a.b.c.d"; tcp6: "::", "::1" or an IPv4-mapped one as IPv4, else ""
+  std::string local;  // "a.b.c.d"; tcp6: "::", "::1" or an IPv4-mapped one as IPv4, else ""
   int local_port = 0;
-  std::string remote;   // "a.b.c.d:port" (tcp only; "" in tcp6 entries)
-  int state = 0;        // the kernel's TCP state: 0x01 ESTABLISHED, 0x02 SYN_SENT, 0x0A LISTEN, ...
+  std::string remote;  // "a.b.c.d:port" (tcp only; "" in tcp6 entries)
+  int state = 0;       // the kernel's TCP state: 0x01 ESTABLISHED, 0x02 SYN_SENT, 0x0A LISTEN, ...
   uint64_t tx_queue = 0;  // bytes sent and not yet acknowledged
   uint64_t inode = 0;
 };

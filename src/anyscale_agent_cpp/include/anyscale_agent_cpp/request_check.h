@@ -3,7 +3,10 @@
 #pragma once
 
 #include <cstddef>
+#include <map>
 #include <string>
+
+#include "anyscale_agent_cpp/node_model.h"
 
 namespace anyscale_agent
 {
@@ -13,6 +16,9 @@ namespace anyscale_agent
 constexpr double kMaxLeaseS = 86400.0;
 // A stop's SIGINT grace beyond an hour is refused (it was converted to nanoseconds unchecked).
 constexpr double kMaxSigintTimeoutS = 3600.0;
+// A start's expected CPU (% of the scale) and memory (MB) beyond these is no estimate.
+constexpr double kMaxExpectedCpuPercent = 10000.0;
+constexpr double kMaxExpectedMemoryMb = 1e9;
 // More watched topics than any ROS system has is a flood, not a configuration.
 constexpr std::size_t kMaxWatchedTopics = 1000;
 // How much of a name from a request goes into an answer or a log line.
@@ -26,10 +32,20 @@ std::string quoted(const std::string& text, std::size_t max_bytes = kMaxQuotedBy
 // naming `field`.
 std::string checkSeconds(const std::string& field, double seconds, bool zero_allowed, double max_s);
 
+// "" if `amount` is finite, >= 0 and at most `max`; else why not, naming `field` and `unit`.
+std::string checkAmount(const std::string& field, double amount, double max,
+                        const std::string& unit);
+
 // "" if a param override's value (YAML text) is a plain number or boolean; else why not. A state
 // hand-off is numbers (a pose); a string, list or map could name a file, a command or a plugin
 // that a declared node acts on, which the model did not declare.
 std::string checkOverrideValue(const std::string& key, const std::string& yaml_text);
+
+// "" if every key of `overrides` is a parameter the state hand-off of `decl` sets; else why not.
+// Any other private parameter (max_particles: 2147483647, update_min_d: .nan) changes what the
+// node does, which the model did not declare.
+std::string checkOverrideKeys(const NodeDecl& decl,
+                              const std::map<std::string, std::string>& overrides);
 
 // YAML 1.1 booleans as PyYAML (and so roslaunch) reads them: true/yes/on and false/no/off in
 // lower, Title and UPPER case. False if `text` is none of them.

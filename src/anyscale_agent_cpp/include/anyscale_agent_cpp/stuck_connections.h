@@ -23,7 +23,9 @@ namespace anyscale_agent
 class StuckConnections
 {
 public:
-  StuckConnections(std::string remote, double stuck_after_s) : remote_(std::move(remote)), after_s_(stuck_after_s) {}
+  StuckConnections(std::string remote, double stuck_after_s)
+    : remote_(std::move(remote)), after_s_(stuck_after_s)
+  {}
   // The connections to the remote among `entries` that wait for an acknowledgement (SYN_SENT,
   // or ESTABLISHED with bytes unacknowledged) at time `now` (s); returns the inodes of those that
   // have waited since at least stuck_after_s.

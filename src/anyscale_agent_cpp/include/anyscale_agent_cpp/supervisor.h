@@ -1,6 +1,6 @@
-// Process supervisor: node processes in their own session and process group. Staged stop and
-// reaping are in supervisor.cpp; starts, warm standbys and their activation in supervisor_spawn.cpp;
-// the state file and the adoption of a predecessor's nodes in supervisor_adopt.cpp.
+// Process supervisor: node processes in their own session and process group (stops and reaping
+// in supervisor.cpp; starts and warm standbys in supervisor_spawn.cpp; the state file and
+// adoption in supervisor_adopt.cpp).
 #pragma once
 
 #include <signal.h>
@@ -25,7 +25,7 @@ namespace anyscale_agent
 
 enum class ProcState
 {
-  Starting,      // forked and exec'd; not yet seen registered (the ROS layer calls markRunning)
+  Starting,  // forked and exec'd; not yet seen registered (the ROS layer calls markRunning)
   Running,
   Stopping,      // SIGINT / SIGTERM / SIGKILL sequence under way
   Exited,        // ended by itself or by a stop
@@ -73,12 +73,9 @@ struct SupervisorOptions
   // Become a child subreaper (prctl), so grandchildren a node leaves behind are re-parented to
   // the agent and reaped by it rather than by init, out of our sight.
   bool subreaper = true;
-  // Children get this signal if the agent dies without stopping them (SIGKILL, crash): a node
-  // on a remote scale must not outlive the agent that enforces its lease. SIGKILL, because a
-  // handled signal may never end the node: rospy runs its shutdown inside the SIGTERM handler
-  // on the main thread, and a rospy talker caught in publish() that way was seen blocked on a
-  // futex for good, ignoring even the master's shutdown request. 0 disables it: the agent does
-  // so on the master scale (~nodes_outlive_agent), whose nodes its successor adopts (adopt()).
+  // Sent to the children when the agent dies without stopping them, so that a remote node never
+  // outlives the agent enforcing its lease; SIGKILL, as a handled signal may never end a rospy
+  // node (docs/design/agent.md). 0: none (~nodes_outlive_agent; a successor adopts them).
   int parent_death_signal = SIGKILL;
   // Watch adopted nodes with pidfd_open(2) (Linux >= 5.3). False, or a kernel without it
   // (ENOSYS): /proc/PID/stat is read at every poll() instead. A switch for the tests.
@@ -100,17 +97,14 @@ public:
   // Starts argv[0] (an absolute path; no PATH search, no shell) with its stdout and stderr
   // appended to `log_file`, in a new session and process group. Returns the pid, or 0 with the
   // reason in *error (name in use, log not writable, exec failure with errno text).
-  int start(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
-            std::string* error);
+  int start(const std::string& name, const std::vector<std::string>& argv,
+            const std::string& log_file, std::string* error);
 
-  // Starts a warm standby of `name` the same way, but in state Standby and with a socket on its
-  // stdin: argv is a program that prepares the node and waits for the line "start" (see
-  // scripts/python_standby). End of input (the agent's end) tells it to quit. A standby has a
-  // slot of its own beside the node's: it can wait while the node runs, so that it is ready
-  // the moment the node leaves or ends. A node brought back a few seconds after it left found
-  // no standby prepared in time, and started cold.
-  int startStandby(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
-                   std::string* error);
+  // Starts a warm standby of `name` like start(), in state Standby, in a slot of its own beside
+  // the node's (it may wait while the node runs), with a socket on its stdin: it becomes the node
+  // on the line "start" and quits at end of input (scripts/python_standby).
+  int startStandby(const std::string& name, const std::vector<std::string>& argv,
+                   const std::string& log_file, std::string* error);
   // Sends "start" to the standby of `name`, which becomes the node (an ordinary Starting node);
   // its pid, or 0 with the reason if there is no live standby or the node still runs.
   int activate(const std::string& name, std::string* error);
@@ -123,7 +117,8 @@ public:
   // (Exited, or LeaseExpired: then SIGKILL at once, no SIGINT/SIGTERM grace). With
   // kill_after_s > 0, SIGKILL follows SIGINT after that long instead of the staged timeouts.
   // False if `name` is not alive.
-  bool stop(const std::string& name, ProcState final_state = ProcState::Exited, double kill_after_s = 0.0);
+  bool stop(const std::string& name, ProcState final_state = ProcState::Exited,
+            double kill_after_s = 0.0);
 
   // Pauses a running node's whole process group (SIGSTOP): it keeps its state, its master
   // registration and its connections, and uses no CPU. False, with the reason, unless it is
@@ -160,17 +155,13 @@ public:
   // Stops all processes and waits for them; used on shutdown.
   void stopAll();
 
-  // Reads the state file a predecessor left at `state_file` and adopts each node in it whose
-  // process still runs: same pid, same start time, same command line. An adopted node is a
-  // node like any other (stop, pause, list, exits) except that it is not our child. From then
-  // on the file lists the running nodes, rewritten whenever that list changes, after the
-  // change and outside the supervisor's lock. Call it once, before any start. Never throws:
-  // an unusable file is a warning and adopts nothing.
+  // Once, before any start: adopts each node of the predecessor's `state_file` whose process
+  // still runs (same pid, start time and command line), then keeps the file listing the running
+  // nodes. Never throws: an unusable file is a warning and adopts nothing.
   AdoptionReport adopt(const std::string& state_file);
-  // The lease ends of running nodes (CLOCK_MONOTONIC seconds, 0: none), kept in the state
-  // file so that a successor enforces them: only for nodes that outlive this supervisor
-  // (parent_death_signal 0, or adopted). A node that dies with it leaves nothing to enforce,
-  // and is written with 0, so that a lease renewal does not rewrite the file.
+  // The lease ends of running nodes (CLOCK_MONOTONIC s, 0: none) for the state file, so that a
+  // successor enforces them; kept only for nodes that outlive this supervisor (others: 0, so a
+  // renewal does not rewrite the file).
   void setLeaseEnds(const std::map<std::string, double>& lease_ends);
   // Changes in the state file's health since the last call (a write failed, or works again),
   // one line each, for the caller to log.
@@ -209,8 +200,8 @@ private:
   bool adoptedExited(const Record& r) const;
   // Stages the state file's list of running nodes, if it changed, for the StateLock held to write.
   void saveStateLocked();
-  int launch(const std::string& name, const std::vector<std::string>& argv, const std::string& log_file,
-             bool standby, std::string* error);
+  int launch(const std::string& name, const std::vector<std::string>& argv,
+             const std::string& log_file, bool standby, std::string* error);
   void spawnerLoop();
 
   SupervisorOptions options_;
@@ -218,10 +209,10 @@ private:
   std::condition_variable changed_;
   std::map<std::string, Record> records_;   // the nodes
   std::map<std::string, Record> standbys_;  // their warm standbys
-  std::vector<Group> orphan_groups_;  // leaders gone, members remain
+  std::vector<Group> orphan_groups_;        // leaders gone, members remain
   std::vector<std::string> unrequested_exits_;
   uint64_t unrequested_exit_count_ = 0;
-  NodeStateWriter state_file_;  // no path until adopt(): no state file
+  NodeStateWriter state_file_;                           // no path until adopt(): no state file
   std::optional<NodeStateWriter::Staged> staged_state_;  // for the StateLock to write
   std::string boot_id_;
 

@@ -32,7 +32,8 @@ struct GroupUsage
 class SystemSampler
 {
 public:
-  explicit SystemSampler(std::string proc_root = "/proc", std::string cgroup_root = "/sys/fs/cgroup");
+  explicit SystemSampler(std::string proc_root = "/proc",
+                         std::string cgroup_root = "/sys/fs/cgroup");
 
   // One pass over /proc at monotonic time `now_s`. Per group, CPU is utime+stime of every
   // process whose process group is `pgid` (rosmon's method): a node started through a wrapper

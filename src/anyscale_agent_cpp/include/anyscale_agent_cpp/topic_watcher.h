@@ -46,14 +46,15 @@ public:
   // the counter sees the serialized size, the receipt time and the publisher only.
   // `by_bus_stats` false: every counted topic by a subscription, none from a node's bus
   // statistics (see the agent's ~count_by_bus_stats).
-  TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all, bool by_bus_stats,
-               double bus_stats_period_s, double bus_stats_timeout_s, PublisherSeen on_publisher = {});
+  TopicWatcher(ros::NodeHandle nh, double window_s, int queue_size, bool watch_all,
+               bool by_bus_stats, double bus_stats_period_s, double bus_stats_timeout_s,
+               PublisherSeen on_publisher = {});
 
   // The topics to watch (resolved names), each with the node on this scale that subscribes
   // to it in the model (`subscribers`: empty, or one per topic; see WatchList). Names are
   // validated here; returns false with the offending one in *error and changes nothing.
-  bool setWatched(const std::vector<std::string>& topics, const std::vector<std::string>& subscribers,
-                  std::string* error);
+  bool setWatched(const std::vector<std::string>& topics,
+                  const std::vector<std::string>& subscribers, std::string* error);
   std::vector<std::string> watched() const;
 
   // Subscribes to the watched topics that a node on this scale subscribes to, and drops the
@@ -69,7 +70,8 @@ public:
     bool paused = false;   // SIGSTOPped: it receives nothing, its bus statistics say nothing
   };
   void update(const std::set<std::string>& local_topics);
-  void setRunning(const std::map<std::string, RunningNode>& running, const std::function<bool()>& may_call_master);
+  void setRunning(const std::map<std::string, RunningNode>& running,
+                  const std::function<bool()>& may_call_master);
 
   std::vector<anyscale_msgs::TopicStatistics> stats(const ros::Time& now);
 
@@ -100,7 +102,7 @@ private:
     std::set<std::string> subscribed;
     std::map<std::string, BusStatsPoller::Node> polled;  // every topic a running node subscribes to
     std::set<std::string> by_bus;                        // those of them counted from bus stats
-    std::map<std::string, std::string> refused;          // topic -> why its node's stats are refused
+    std::map<std::string, std::string> refused;  // topic -> why its node's stats are refused
   };
   Plan plan() const;
   void applyBus();  // no master call
@@ -122,10 +124,10 @@ private:
 
   WatchList watched_;
   std::set<std::string> local_topics_;
-  std::set<std::string> running_;                      // declared names, for WatchList::toCount
-  std::map<std::string, RunningNode> running_nodes_;   // declared name ->
+  std::set<std::string> running_;                     // declared names, for WatchList::toCount
+  std::map<std::string, RunningNode> running_nodes_;  // declared name ->
   std::map<std::string, std::shared_ptr<Counter>> counters_;  // subscribed topics only
-  std::map<std::string, std::string> by_bus_;          // topic -> node, counted from its bus stats
+  std::map<std::string, std::string> by_bus_;  // topic -> node, counted from its bus stats
   std::unique_ptr<BusStatsPoller> poller_;
 };
 

@@ -32,8 +32,8 @@ public:
   // The topics to count: every watched one with `watch_all`; else those that a node of this
   // scale subscribes to, by the master's graph (`graph_local`) or by the model, where the
   // subscriber is one of the nodes this agent runs (`running`, fully qualified).
-  std::set<std::string> toCount(const std::set<std::string>& graph_local, const std::set<std::string>& running,
-                                bool watch_all) const;
+  std::set<std::string> toCount(const std::set<std::string>& graph_local,
+                                const std::set<std::string>& running, bool watch_all) const;
 
   // The watched topics that a node this agent runs subscribes to by the model, each with that
   // node (the first by name where several do): they are counted from the node's own bus

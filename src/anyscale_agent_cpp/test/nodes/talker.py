@@ -14,7 +14,8 @@ def main():
     if payload > 0:
         pub = rospy.Publisher(topic, Image, queue_size=2)
         width = 640
-        msg = Image(height=max(1, payload // (3 * width)), width=width, encoding="rgb8", step=3 * width)
+        msg = Image(height=max(1, payload // (3 * width)), width=width, encoding="rgb8",
+                    step=3 * width)
         msg.data = bytes(msg.height * msg.step)
     else:
         pub = rospy.Publisher(topic, String, queue_size=10)

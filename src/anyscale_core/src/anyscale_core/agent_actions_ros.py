@@ -1,17 +1,17 @@
 """The decision node's actions through the agents, on worker threads: starts, make-before-break
 handovers, stops, lease renewals, watch lists, and the removal of dead instances' registrations.
-A mixin of DecisionNode (decision_ros.py), whose state it uses: the engine and its lock, the
-agents' client, the workers, the model, the parameters and the publishers."""
+DecisionNode (decision_ros.py) owns one AgentActions and hands it what it needs."""
 import math
 import threading
 import time
 from dataclasses import replace
+from typing import Callable, Dict, Iterable, Set, Tuple
 
 import rosgraph
 import rospy
 
 from . import ros_convert as conv
-from .agent_client import wait_registered
+from .agent_client import CallFailures, Worker, wait_registered
 from .decision_types import RenewLeases, StartNode, StopNode
 from .ghost_registrations import dead_registrations, ghost_candidates, pauses_under_way, purge
 from .handover_ros import PUBLISHED, TIMED_OUT, OutputWatch, wait_for_output
@@ -19,11 +19,62 @@ from .handover_ros import PUBLISHED, TIMED_OUT, OutputWatch, wait_for_output
 REGISTER_TIMEOUT_S = 30.0  # a started node not registered by then is reported as failed
 GHOST_PING_TIMEOUT_S = 0.5  # a registered instance that does not answer this fast is gone
 WATCH_RESEND_S = 10.0     # re-send watch lists now and then: an agent may have restarted
-WATCH_CHECK_S = 1.0       # a watched topic missing from a report this long after the list was
-                          # sent: the list is sent again
+# A watched topic missing from a report this long after the list was sent: the list is sent again.
+WATCH_CHECK_S = 1.0
 
 
 class AgentActions:
+    """Carries out the engine's actions through `agents`. `lock` is the decision node's: it
+    guards the engine, `reports` and `statuses` (the node's, updated in place) and the
+    bookkeeping here, which the node reads for its ticks (busy)."""
+
+    def __init__(self, model, params, engine, lock: threading.Lock, agents,
+                 reports: Dict[str, object], statuses: Dict[str, object],
+                 publish_event: Callable[..., None], publish_mapping: Callable[[], None],
+                 caller_id: str):
+        self.model, self.params, self.engine, self.lock = model, params, engine, lock
+        self.master = model.master.name
+        self.agents = agents
+        self.reports, self.statuses = reports, statuses
+        self._publish_event, self._publish_mapping = publish_event, publish_mapping
+        self.caller_id = caller_id
+        self.link_up: Dict[str, bool] = {}    # remote scale -> up, as of the node's latest tick
+        self.starting: Set[Tuple[str, str]] = set()  # (node, scale) of starts not yet answered
+        self.handing_over: Set[str] = set()   # nodes whose old and new instance both run
+        self.node_jobs: Dict[str, int] = {}   # node -> its jobs queued or running on its worker
+        # instance paused at our request -> (its scale, when the pause was acknowledged)
+        self.pausing: Dict[str, tuple] = {}
+        self.watch_sent: Dict[str, tuple] = {}  # scale -> (watch list, when it was sent)
+        self.call_failures = CallFailures()
+        # One worker per node: a slow start on one scale does not hold up another node's move.
+        self.node_workers = {n: Worker(f"anyscale_node_{n}") for n in model.node_names}
+        self.scale_workers = {s: Worker(f"anyscale_{s}") for s in model.scale_names}
+        self.registrations = Worker("anyscale_registrations")
+
+    # --- what the decision node calls ----------------------------------------------------------
+    def busy(self) -> Tuple[Set[str], Set[str]]:
+        """Under the lock: (nodes whose start is not yet answered, nodes with an action under
+        way), which the engine's tick leaves alone."""
+        return {n for n, _ in self.starting}, set(self.handing_over) | set(self.node_jobs)
+
+    def dispatch(self, actions: Iterable, events: Dict[str, object], stamp, decided: float):
+        """Queues a tick's actions: lease renewals on their scale's worker, the rest of each
+        node's actions, in order, on its node's worker; `events` by node, reported once done."""
+        jobs: Dict[str, list] = {}
+        for action in actions:
+            if isinstance(action, RenewLeases):
+                self.scale_workers[action.scale].submit(
+                    lambda a=action: self._renew(a), key="renew")
+            else:
+                jobs.setdefault(action.node, []).append(action)
+                if isinstance(action, StartNode):
+                    with self.lock:
+                        self.starting.add((action.node, action.scale))
+        for node, node_actions in jobs.items():
+            self._submit_node_job(node, lambda n=node, a=node_actions, e=events.get(node):
+                                  self._execute_move(n, a, e, stamp, decided))
+
+    # --- on the workers -----------------------------------------------------------------------
     def _submit_node_job(self, node, job):
         """`job` on the node's worker, counted in node_jobs until it ended: the engine leaves
         alone the strays of a node whose actions are still to come (DecisionEngine._strays)."""
@@ -127,9 +178,8 @@ class AgentActions:
             return
         if not self.link_up.get(source, True):
             # The old instance is out of reach: going back to it would leave the node running
-            # nowhere that can be reached (in a tolerance bench run AR's robot instance, which
-            # published all along unseen, was stopped 20 s after its return, and the link-loss
-            # return that followed left /ar_markers silent 1.51 s).
+            # nowhere that can be reached (docs/measurements/tolerances.md, "two decision-node
+            # races").
             rospy.logwarn("anyscale decision: %s on %s: no output seen within %.1f s, but %s is "
                           "out of reach; it stays on %s", node, target,
                           self.params.handover_timeout_s, source, target)
@@ -150,8 +200,7 @@ class AgentActions:
         meant to run there: a stop queued before this one may have ended it meanwhile."""
         with self.lock:
             elsewhere = self.engine.mapping()[node] != stop.scale
-        if not (elsewhere and self._agent_reports_running(stop.scale, node,
-                                                          states=conv.ALIVE_STATES)):
+        if not (elsewhere and self.reports_running(stop.scale, node, states=conv.ALIVE_STATES)):
             return
         rospy.logwarn("anyscale decision: %s runs on %s, where the mapping does not place it "
                       "(a stop that did not get through, e.g. its agent was restarted); %s it",
@@ -197,11 +246,14 @@ class AgentActions:
     def _start(self, action: StartNode, event, stamp, decided, handover=None) -> int:
         """Starts the node; its pid, or 0 if the start failed (then handled here)."""
         node, scale = action.node, action.scale
+        full = None
         try:
             reply = self.agents.start(scale, node,
                                       conv.param_overrides_to_kv(action.param_overrides),
-                                      action.lease_s)
+                                      action.lease_s, action.cpu_percent, action.memory_mb)
             ok, message, pid = reply.success, reply.message, reply.pid
+            if not ok and reply.scale_full:
+                full = (reply.cpu_free_percent, reply.memory_free_mb)
         except Exception as e:  # noqa: BLE001 - reported as a failed start below
             ok, message, pid = False, str(e), 0
         with self.lock:
@@ -210,7 +262,7 @@ class AgentActions:
                 self.engine.start_acknowledged(node, time.monotonic())
                 self.pausing.pop(self.model.instance_name(node, scale), None)  # resumed
         if not ok:
-            self._start_failed(action, event, message, handover)
+            self._start_failed(action, event, message, handover, full)
             return 0
         if event is not None:
             # Waiting for the registration must not hold up the next move.
@@ -218,17 +270,24 @@ class AgentActions:
                              args=(node, scale, pid, event, stamp, decided), daemon=True).start()
         return pid
 
-    def _start_failed(self, action: StartNode, event, message, handover):
+    def _start_failed(self, action: StartNode, event, message, handover, full=None):
+        """A start that failed: the node stays where it runs (a handover's old instance was
+        never stopped) or comes home. full: (CPU %, MB) a shared scale's ledger had room for
+        when it refused the start for capacity; the nodes that do not fit are backed off there."""
         node, scale = action.node, action.scale
         rospy.logerr("anyscale decision: start %s on %s failed: %s", node, scale, message)
         self._publish_event("failed", node, event.from_scale if event else "", scale,
                             f"start on {scale} failed: {message}", rospy.Time.now(), math.nan,
                             False)
         with self.lock:
+            backed_off = [] if full is None else \
+                self.engine.capacity_refused(node, scale, full[0], full[1], time.monotonic())
             if handover is not None:    # the old instance still runs: the node stays there
                 back = self.engine.move_failed(node, handover.scale, scale, time.monotonic())
             else:
                 back = self.engine.action_failed(node, scale, time.monotonic())
+        for line in backed_off:
+            rospy.loginfo("anyscale decision: %s", line)
         if back is None:
             return
         rospy.loginfo("anyscale decision: %s", conv.describe_change(
@@ -241,13 +300,13 @@ class AgentActions:
     def _report_when_registered(self, node, scale, pid, event, stamp, decided):
         registered = wait_registered(self.model.instance_name(node, scale), pid, self.caller_id,
                                      REGISTER_TIMEOUT_S,
-                                     lambda: self._agent_reports_running(scale, node, pid))
+                                     lambda: self.reports_running(scale, node, pid))
         reason = event.reason if registered else \
             f"{event.reason}; not registered within {REGISTER_TIMEOUT_S:g} s"
         self._publish_event(event.kind, node, event.from_scale, scale, reason, stamp,
                             time.monotonic() - decided if registered else math.nan, registered)
 
-    def _agent_reports_running(self, scale, node, pid=None, states=None):
+    def reports_running(self, scale, node, pid=None, states=None):
         """Whether the agent's latest status shows the node's instance (with `pid`, if given)
         in one of `states` (default: RUNNING)."""
         with self.lock:
@@ -270,7 +329,9 @@ class AgentActions:
             failure = f"failed: {e}"
         self._note_call(("renew_leases", action.scale), failure)
 
-    def _send_watch_lists(self, force=False):
+    def send_watch_lists(self, force=False):
+        """Sends each scale the topics to count for the mapping when they changed, when its
+        agent lost them, and every WATCH_RESEND_S."""
         with self.lock:
             lists = conv.watched_topics(self.model, self.engine.mapping())
             reports = dict(self.reports)
@@ -290,9 +351,7 @@ class AgentActions:
     def _watch_list_lost(report, watched, sent_at):
         """Whether a report received WATCH_CHECK_S after the list was sent lacks a watched
         topic whose subscriber it shows running: the agent that got the list is gone (a
-        restarted agent starts with none). Without it the topic has no rate there, and the
-        judge brought the relay home from a clean link 3.5 s after a kill of the robot's
-        agent, before the periodic resend."""
+        restarted agent starts with none; docs/design/decision_node.md, Strays)."""
         return report.received_at > sent_at + WATCH_CHECK_S and any(
             topic not in report.topic_rates and conv.model_node_name(subscriber) in report.running
             for topic, subscriber in watched)
@@ -316,7 +375,7 @@ class AgentActions:
         elif self.call_failures.succeeded(key):
             rospy.loginfo("anyscale decision: %s on %s works again", service, scale)
 
-    def _purge_ghosts(self):
+    def purge_ghosts(self):
         """Removes the master's registrations of this system's node instances that are gone
         (see ghost_registrations), except where a node runs or is being handed over, and
         paused instances (launch.pause_at_home), which are registered but do not answer."""
@@ -338,10 +397,8 @@ class AgentActions:
         try:
             dead = dead_registrations(master, names, self.caller_id, GHOST_PING_TIMEOUT_S)
             # Each ping may wait GHOST_PING_TIMEOUT_S: an instance whose pause began meanwhile
-            # (a handover that had just ended) does not answer either, and is no ghost. Purged,
-            # it ran on unregistered once resumed: in a tolerance bench run the next handover's
-            # subscriber never found AR's robot instance, which published to its old
-            # subscribers all along, and the move was taken for failed.
+            # does not answer either, and is no ghost; purged, it would run on unregistered once
+            # resumed (docs/measurements/tolerances.md, "two decision-node races").
             candidates_now = set(self._ghost_candidates())
             dead = [name for name in dead if name in candidates_now]
             purge(master, dead)

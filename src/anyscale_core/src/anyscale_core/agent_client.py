@@ -58,7 +58,7 @@ class AgentClient:
         return call_with_timeout(lambda: proxy(**request),
                                  self.timeout_s if timeout_s is None else timeout_s)
 
-    def start(self, scale, node, overrides, lease_s):
+    def start(self, scale, node, overrides, lease_s, cpu_percent=0.0, memory_mb=0.0):
         """One retry when the call broke off without an answer: in one CI run of the live
         migration test, the initial start of the EKF ended in "unable to receive data from
         sender", nothing started it again, and navigation never ran. Starting is idempotent at
@@ -67,7 +67,7 @@ class AgentClient:
         only double the wait."""
         def call():
             return self.call(scale, "start_node", node=node, param_overrides=overrides,
-                             lease_s=lease_s)
+                             lease_s=lease_s, cpu_percent=cpu_percent, memory_mb=memory_mb)
         try:
             return call()
         except rospy.ServiceException as e:

@@ -11,8 +11,10 @@ another owner of the nodes:
   starting it through an agent would make the master shut the user's process down;
 - a model node running away from home (its pinned scale or the master).
 
-Every node this session starts gets a lease that a thread renews; if the command dies (even by
-SIGKILL) the agents end those nodes within the lease. close() stops what it started and starts
+Every node this session starts away from the master scale gets a lease that a thread renews; if
+the command dies (even by SIGKILL) the agents end those nodes within the lease. The master's
+agent takes no lease: a node started at home outlives a killed command, as the robot's nodes
+run there anyway. close() stops what it started and starts
 again at home any node it found running and moved, so a run (also one that failed or was
 interrupted) leaves the system as it was. Nodes are started with their state hand-off (AMCL
 from its last pose), as the decision node starts them.
@@ -192,9 +194,11 @@ class AgentSession:
         agent's reason, the exit and the log's last lines when it does not come up."""
         from .ros_convert import param_overrides_to_kv
         overrides = sorted(self.handoff(node).items())
-        lease_s = self.lease_s if lease else 0.0
+        lease_s = self.lease_s if lease and scale != self.model.master.name else 0.0
+        model_node = self.model.node(node)   # what a shared scale's ledger holds for it
         try:
-            reply = self.agents.start(scale, node, param_overrides_to_kv(overrides), lease_s)
+            reply = self.agents.start(scale, node, param_overrides_to_kv(overrides), lease_s,
+                                      model_node.cpu_usage.get(scale, 0.0), model_node.memory_mb)
         except Exception as e:  # noqa: BLE001 - a service failure: one line for the user
             raise SessionError(f"{node} on {scale}", "", f"start_node failed: {e}") from None
         if not reply.success:

@@ -1,26 +1,28 @@
-"""The `anyscale` command line: check a model, plan one decision, run the Fig. 7 simulation,
-watch a running system (top), draft a model from a running graph (model draft), measure its
-nodes' CPU (profile) and a connection's thresholds (thresholds).
+"""The `anyscale` command line: check a model, plan one decision, watch a running system (top),
+draft a model from a running graph (model draft), measure its nodes' CPU (profile) and a
+connection's thresholds (thresholds), and the commands other packages register (cli_plugins:
+the Fig. 7 study's `simulate`).
 
-This module assembles the parser from the sub-command modules in COMMAND_MODULES (each adds its
-parsers and carries its commands out) and turns their errors into one line. Errors in the
-user's files are printed as one line naming the file and key, exit status 2; so is bad usage.
+This module assembles the parser from the sub-command modules (each adds its parsers and
+carries its commands out) and turns their errors into one line. Errors in the user's files are
+printed as one line naming the file and key, exit status 2; so is bad usage.
 """
 import argparse
 import os
 import sys
 from typing import List, Optional
 
-from . import cli_check_plan, cli_profile_thresholds, cli_simulate, cli_top_draft
+from . import cli_check_plan, cli_model_draft, cli_profile, cli_thresholds, cli_top
 from .cli_common import EXIT_USAGE, OneLineParser
+from .cli_plugins import KNOWN_ELSEWHERE, add_plugin_parsers, registered_modules
 from .model import ModelError
 
-# In the order `anyscale --help` lists them: check, plan, simulate, top, model, profile,
-# thresholds.
-COMMAND_MODULES = (cli_check_plan, cli_simulate, cli_top_draft, cli_profile_thresholds)
+# In the order `anyscale --help` lists them (check, plan, top, model, profile, thresholds),
+# then the registered commands.
+COMMAND_MODULES = (cli_check_plan, cli_top, cli_model_draft, cli_profile, cli_thresholds)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(plugins=None) -> argparse.ArgumentParser:
     parser = OneLineParser(
         prog="anyscale",
         description="AnyScale: decide where the nodes of a ROS system run (paper: AnyScale "
@@ -29,16 +31,21 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     for module in COMMAND_MODULES:
         module.add_parsers(sub)
+    add_plugin_parsers(sub, registered_modules() if plugins is None else plugins)
+    parser.command_names = frozenset(sub.choices)
     return parser
 
 
-def main(argv: Optional[List[str]] = None) -> int:
-    parser = build_parser()
-    args, study_options = parser.parse_known_args(argv)
-    if args.command == "simulate":
-        args.options = study_options
-    elif study_options:
-        parser.error("unrecognized arguments: " + " ".join(study_options))
+def main(argv: Optional[List[str]] = None, plugins=None) -> int:
+    """plugins: the registered (package, module) pairs; None: as `rospack plugins` lists them."""
+    parser = build_parser(plugins)
+    argv = sys.argv[1:] if argv is None else argv
+    command = argv[0] if argv else ""
+    if command in KNOWN_ELSEWHERE and command not in parser.command_names:
+        print(f"anyscale {command}: needs the package {KNOWN_ELSEWHERE[command]}; build or "
+              f"install it beside anyscale_core", file=sys.stderr)
+        return EXIT_USAGE
+    args = parser.parse_args(argv)
     try:
         return args.run(args)
     except ModelError as e:

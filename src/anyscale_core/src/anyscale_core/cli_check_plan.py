@@ -3,7 +3,7 @@ and characterises it; plan makes one decision of an allocator from the all-on-ma
 import json
 from typing import List
 
-from .allocators import ALLOCATORS, AllocationContext, make_allocator
+from .allocators import ALLOCATORS, DEFAULT_ALLOCATOR, AllocationContext, make_allocator
 from .characterisation import Characterisation, characterise, count_mappings
 from .cli_common import add_command
 from .constraints import DynamicState, load_state, required_bandwidth, violations
@@ -37,8 +37,9 @@ def add_parsers(sub):
                       help="YAML with the dynamic parameters: bandwidth_mbps (default: the "
                            "network's maximum), scale_load {scale: %%} (default 0), link_up "
                            "{remote scale: bool} (default true)")
-    plan.add_argument("--solver", default="paper", metavar="NAME",
-                      help=f"allocator: {', '.join(sorted(ALLOCATORS))} (default: paper)")
+    plan.add_argument("--solver", default=DEFAULT_ALLOCATOR, metavar="NAME",
+                      help=f"allocator: {', '.join(sorted(ALLOCATORS))} (default: "
+                           f"{DEFAULT_ALLOCATOR})")
     plan.add_argument("--json", action="store_true",
                       help='print {"mapping": {node: scale}, "perf": float, "feasible": bool, '
                            '"solver": str}')

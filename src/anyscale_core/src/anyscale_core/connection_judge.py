@@ -96,13 +96,9 @@ class ConnectionJudge:
 
     def _silence_spent(self, c: int, report: Optional[ScaleReport],
                        heard_only: bool = False) -> str:
-        """Why connection c must come home for its silence ('' if it need not). The checked
-        promise is that no judged connection is silent for longer than its tolerance, and a
-        rate over a window falls below freq_min only well into a silence; a return takes
-        0.2-0.5 s to its first message on the robot, the report and the tick up to 0.45 s more.
-        So the node comes home once the silence has used act_at_silence of the tolerance: a
-        link step to 3 Mbit/s under AR's 6 Mbit/s camera stream left /ar_markers silent 1.06 s
-        (Δ 1 s) while the bandwidth probe took 2.2 s to read the drop (fault soak, CI)."""
+        """Why connection c must come home for its silence ('' if it need not): once the silence
+        has used act_at_silence of its tolerance, so that the return lands before the tolerance
+        is spent (docs/design/live_migration.md, "Home before a silence reaches Δ")."""
         conn = self.ch.model.connections[c]
         share = self.params.act_at_silence
         if report is None or share <= 0 or conn.tolerance <= 0:

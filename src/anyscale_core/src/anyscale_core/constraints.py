@@ -21,7 +21,8 @@ class DynamicState:
     scale_load: Mapping[str, float] = field(default_factory=dict)  # % of CPU not from model nodes
     link_up: Mapping[str, bool] = field(default_factory=dict)      # per remote scale; absent = up
     # What a mapping may make cross scales beyond what already crosses: the bandwidth the link
-    # has held for a while, less a margin (link_capacity.BandwidthHold). inf: no such limit (the paper's).
+    # has held for a while, less a margin (link_capacity.BandwidthHold). inf: no such limit (the
+    # paper's).
     admit_bandwidth_mbps: float = math.inf
 
     @staticmethod
@@ -197,11 +198,6 @@ class FrequencyToleranceTracker:
     def below_for(self, t: float) -> float:
         """Seconds the rate has been below freq_min at time t (0 if it is not)."""
         return 0.0 if self._below_since is None else max(0.0, t - self._below_since)
-
-    def tolerance_left(self, t: float) -> float:
-        """Seconds until the connection violates its tolerance (0 once violated; the full
-        tolerance while the rate is fine)."""
-        return max(0.0, self.tolerance_s - self.below_for(t))
 
     def used_fraction(self, t: float) -> float:
         """Share of the tolerance already spent below freq_min (1 for tolerance 0 when below)."""

@@ -19,7 +19,9 @@ from .constraints import DynamicState, required_bandwidth
 from .cost import ObjectiveIntegrator, perf
 from .decision_types import (DecisionParams, Event, RenewLeases, ScaleReport, StartNode, StopNode,
                              TickResult)
+from .link_anticipation import LinkAnticipation
 from .link_capacity import BandwidthHold, LinkCapacity
+from .placement_learning import PlacementLearning
 from .restart_backoff import RestartBackoff
 from .restart_state import RestartState, RestartStateError, decode, encode
 
@@ -43,6 +45,10 @@ class DecisionEngine:
         self.stop_answered_at: Dict[int, float] = {}  # node -> when its latest stop ended
         # node -> the remote scale it ran on under the decision node before a restart (restored)
         self.out_before_restart: Dict[int, str] = {}
+        # Live cost estimates and failed moves' back-off (issue 40): placement_learning.py.
+        self.learning = PlacementLearning(ch, params)
+        self.anticipation = LinkAnticipation(ch, params)    # the link ahead (issue 36)
+        self.last_state = DynamicState.nominal(ch.model)      # refusals between ticks
 
     # --- across a restart of the decision node (restart_state.py) -----------------------------
     def holds_last_s(self) -> float:
@@ -114,9 +120,9 @@ class DecisionEngine:
                 events.append(Event("adopt", name, keep, keep, "already running"))
                 actions += [StopNode(name, s) for s in where if s != keep]
                 if keep not in where:
-                    actions.append(self._start(i, self.ch.scale_index(keep)))
+                    actions.append(self._start(i, self.ch.scale_index(keep), now))
             else:
-                actions.append(self._start(i, self.assign[i]))
+                actions.append(self._start(i, self.assign[i], now))
                 events.append(Event("start", name, "", home, "initial configuration"))
             if i in self.out_before_restart and self.assign[i] == self.ch.master:
                 # It ran on a remote scale under the decision node before this one, and is
@@ -128,7 +134,8 @@ class DecisionEngine:
             self.judge.moved(i, now)
         self.out_before_restart = {}
         self.objective.change(now, perf(self.ch, self.assign))
-        return TickResult(actions, events, self.dynamic_state(reports, now), [])
+        self.last_state = self.dynamic_state(reports, now)
+        return TickResult(actions, events, self.last_state, [])
 
     # --- every period -------------------------------------------------------------------------
     def tick(self, reports: Mapping[str, ScaleReport], now: float,
@@ -139,7 +146,8 @@ class DecisionEngine:
         again and stray instances stopped. `starting`: nodes whose start has not been answered
         yet; `acting`: nodes with an action of the wrapper queued or under way (their strays
         may be what that action ends)."""
-        state = self.dynamic_state(reports, now)
+        state = self.last_state = self.dynamic_state(reports, now)
+        self.learning.observe(reports, self.assign, now, lambda i: self._settled(i, now))  # learn
         up = state.up_vector(self.ch)
         remote_up = any(up[k] for k in range(self.ch.num_scales) if k != self.ch.master)
         measured = self._measured_bandwidth(reports, now)
@@ -148,14 +156,18 @@ class DecisionEngine:
         state = replace(state, admit_bandwidth_mbps=self.link.admissible(now))
         strays = self._strays(reports, up, now, starting | acting)
         if not moves_allowed:
-            restarts, restart_events = self._restarts(reports, up, now, starting)
+            restarts, restart_events = self._restarts(reports, up, now, starting, acting=acting)
             return TickResult(restarts + strays + self._renewals(up), restart_events, state, [])
         violating = self.judge.violating(self.assign, reports, now)
         ctx = AllocationContext(now, self.params.hysteresis_s, dict(self.migrated_back_at),
-                                violating, self._held_after_loss(now))
+                                violating, self._held_after_loss(now),
+                                self.learning.blocked(self.assign, state, now))   # learn
         weak = self.link.is_weak(measured, now, streams)
-        decision = self.allocator.step(self.ch, self.assign, state, ctx)
-        actions, events = [], []
+        # The link ahead (issue 36): holds lifted for nodes it carries, returns before a hole;
+        # without a forecast, state and ctx as they are.
+        state, ctx = self.anticipation.adjust(self.assign, state, ctx, measured, weak, up)
+        decision = self.allocator.step(self.learning.planning(now), self.assign, state, ctx)
+        actions, events, notes = [], [], []
         for move in decision.moves:
             name = self.ch.node_names[move.node]
             source, target = self.ch.scale_names[move.source], self.ch.scale_names[move.target]
@@ -164,29 +176,42 @@ class DecisionEngine:
             # agents' instance names), so the new one can start while the old one still
             # publishes, and the old one is stopped once the new one has published. An old
             # instance that cannot be reached ends by itself when its lease runs out.
-            actions.append(self._start(move.node, move.target))
+            actions.append(self._start(move.node, move.target, now))
             if up[move.source]:
                 pause = move.source == self.ch.master and \
                     self.ch.model.node(name).launch.pause_at_home
                 actions.append(StopNode(name, source, after_output_on=target, pause=pause))
             elif self._carrier_up(reports):
                 actions.append(StopNode(name, source, best_effort=True))
+            reason = self.anticipation.reason(move, self._reason(move, measured, streams, weak))
+            if move.source != self.ch.master:                                   # learn
+                failed = self.learning.left(move.node, move.source, now, self.assign, state,
+                                            violating)
+                if failed:
+                    reason, notes = f"{reason}; {failed[0]}", notes + [failed[1]]
             events.append(Event("migrate_back" if back else "migrate", name, source, target,
-                                self._reason(move, measured, streams, weak)))
+                                reason))
             if back:
                 self.migrated_back_at[move.node] = now
             self.judge.moved(move.node, now)
+        self.anticipation.moved(decision.moves, [e.reason for e in events], now)
         if decision.moves:
             self.link.mapping_changed(now, streams)
             self.assign = decision.assign.copy()
             self.objective.change(now, perf(self.ch, self.assign))
         moved = {m.node for m in decision.moves}
-        restarts, restart_events = self._restarts(reports, up, now, starting, moved=moved)
+        restarts, restart_events = self._restarts(reports, up, now, starting, moved=moved,
+                                                  acting=acting)
         actions += restarts + [a for a in strays if self.ch.node_index(a.node) not in moved]
         actions += self._renewals(up)
         events += restart_events
+        notes += self.learning.settle(self.assign, now)                         # learn
         return TickResult(actions, events, state,
-                          [self.ch.node_names[i] for i in sorted(violating)])
+                          [self.ch.node_names[i] for i in sorted(violating)], notes)
+
+    def _settled(self, i: int, now: float) -> bool:
+        """Node i's latest start is over (startup_grace_s): its CPU is its work, not imports."""
+        return now - self.judge.moved_at.get(i, -math.inf) >= self.params.startup_grace_s
 
     def hold_after_loss_left(self, now: float) -> Dict[str, float]:
         """The nodes at home that the latest link loss still holds there, with the seconds left
@@ -237,6 +262,20 @@ class DecisionEngine:
         return Event("migrate_back" if self.assign[i] == self.ch.master else "migrate", node,
                      target, source, f"the instance on {target} did not publish in time")
 
+    def capacity_refused(self, node: str, scale: str, cpu_free: float, memory_free: float,
+                         now: float) -> List[str]:
+        """A shared scale's ledger refused a start of `node` on `scale` (it had room for
+        cpu_free % and memory_free MB): the nodes that do not fit that are not tried there
+        until its reports show room, or a back-off passes (PlacementLearning.refused). Call it
+        before move_failed or action_failed puts the node back. The back-offs' log lines."""
+        i, k = self.ch.node_index(node), self.ch.scale_index(scale)
+        if self.assign[i] != k:
+            return []                   # moved again meanwhile: that decision stands
+        elsewhere = self.assign.copy()
+        elsewhere[i] = self.ch.master
+        return self.learning.refused(i, k, now, elsewhere, self.last_state, cpu_free,
+                                     memory_free)
+
     def action_failed(self, node: str, scale: str, now: float) -> Optional[Event]:
         """A start on a remote scale did not happen: the node is on the master again (the
         wrapper has started it there) and is held back for T like any return."""
@@ -249,6 +288,11 @@ class DecisionEngine:
         self.objective.change(now, perf(self.ch, self.assign))
         return Event("migrate_back", node, scale, self.ch.scale_names[self.ch.master],
                      "start on the remote scale failed")
+
+    def set_link_forecast(self, forecasts):
+        """The link ahead per remote scale for the next tick (link_forecast.LinkForecast), or
+        None: no map, path or pose, and the reactive rules alone (issue 36)."""
+        self.anticipation.update(forecasts)
 
     def observe_handoff(self, node: str, params: Mapping[str, float]):
         """The latest state of a node that hands its state over (e.g. its last pose)."""
@@ -281,8 +325,11 @@ class DecisionEngine:
             if scale != master:
                 link_up[scale] = bool(fresh and report.link_up and uplink)
             if report is not None:
-                loads[scale] = self._smoothed(scale, report.received_at,
-                                              self._background_load(report))
+                load = self._smoothed(scale, report.received_at, self._background_load(report))
+                # On a shared scale, other robots' reservations count whether or not their
+                # nodes' CPU shows yet; their CPU is in the background load once it does.
+                if load is not None or report.cpu_held > 0:
+                    loads[scale] = max(load or 0.0, report.cpu_held)
         # Until a link is measured, the paper's nominal figure: nothing that is out comes back
         # for want of a measurement (a move out needs one, see BandwidthHold).
         measured = self._measured_bandwidth(reports, now)
@@ -311,11 +358,15 @@ class DecisionEngine:
         load = report.cpu_percent - ours / max(report.capacity_cores, 1e-9)
         return float(np.clip(load, 0.0, 100.0))
 
-    def _smoothed(self, scale: str, at: float, load: float) -> float:
+    def _smoothed(self, scale: str, at: float, load: float) -> Optional[float]:
         """Exponential smoothing of a scale's background load over report time: a node that
         starts or stops spends a burst of CPU (imports, shutdown) that is no lasting load, and
-        acting on one 0.2 s sample would move nodes out and back for nothing."""
+        acting on one 0.2 s sample would move nodes out and back for nothing. A load that is
+        no number changes nothing (None if there is none yet): NaN would stay in the filter
+        for good (the decision node's wrapper refuses such a status, status_check.py)."""
         last = self.load_filter.get(scale)
+        if not math.isfinite(load):
+            return None if last is None else last[1]
         if last is not None and at <= last[0]:
             return last[1]                      # the same report again
         if last is None or self.params.cpu_smoothing_s <= 0:
@@ -326,50 +377,69 @@ class DecisionEngine:
         self.load_filter[scale] = (at, value)
         return value
 
-    def _restarts(self, reports, up, now, starting,
-                  moved: AbstractSet[int] = frozenset()) -> Tuple[List[StartNode], List[Event]]:
-        """Nodes whose process ended unasked on the scale they are assigned to, started there
-        again (roslaunch's respawn) as their back-off allows: a crash, a node that exits when an
-        input is missing at its start, or a clean exit the master asked for. A node paused at
-        home comes home instead (_crashed_out_comes_home). Only reports
-        sampled after the node's latest start was answered count: an earlier one may still
-        show the instance that start replaced, also when it arrives late (ScaleReport.sampled_at:
-        a laptop status queued through a 10 s link loss showed the instance its move back had
-        stopped, signal 9, and it arrived just after AMCL's next move out was answered)."""
+    def _restarts(self, reports, up, now, starting, moved: AbstractSet[int] = frozenset(),
+                  acting: AbstractSet[str] = frozenset()) -> Tuple[List[StartNode], List[Event]]:
+        """Nodes that do not run on the scale they are assigned to, started there (again):
+        - ended there unasked or by its lease, as their back-off allows (roslaunch's respawn): a
+          crash, a node that exits when an input is missing at its start, a clean exit the
+          master asked for; a node paused at home comes home instead
+          (_crashed_out_comes_home);
+        - not listed there at all, as their back-off allows: the agent's successor after a
+          graceful shutdown, which stopped every node, lists none;
+        - paused there (a stop_node{pause} that nobody undid): resumed, which a start does.
+        A node with an action under way (`acting`) is judged once that is over, unless it ended.
+        Only reports sampled after the node's latest start was answered count: an earlier one
+        may still show the instance that start replaced, also when it arrives late
+        (ScaleReport.sampled_at: a laptop status queued through a 10 s link loss showed the
+        instance its move back had stopped, signal 9, and it arrived just after AMCL's next
+        move out was answered)."""
         actions, events = [], []
         for i, name in enumerate(self.ch.node_names):
             k = int(self.assign[i])
             scale = self.ch.scale_names[k]
             report = reports.get(scale)
-            if (i in moved or report is None or not up[k] or name not in report.ended
-                    or name in starting
+            if (i in moved or report is None or not up[k] or name in starting
                     or now - report.received_at > self.params.status_timeout_s
-                    or report.sample_time() <= self.start_acked_at.get(i, -math.inf)
-                    or not self.backoff[i].due(now)):
+                    or report.sample_time() <= self.start_acked_at.get(i, -math.inf)):
                 continue
-            self.backoff[i].restarted(now)
+            why = self._not_running(name, scale, report, acting)
+            if why is None or (why[0] != "paused" and not self.backoff[i].due(now)):
+                continue
+            kind, how = why
+            if kind != "paused":
+                self.backoff[i].restarted(now)
             self.judge.moved(i, now)
-            if k != self.ch.master and self.ch.model.node(name).launch.pause_at_home:
-                actions.append(self._start(i, self.ch.master))
-                events.append(self._crashed_out_comes_home(i, scale, report.ended[name], now))
+            if kind != "paused" and k != self.ch.master and \
+                    self.ch.model.node(name).launch.pause_at_home:
+                actions.append(self._start(i, self.ch.master, now))
+                events.append(self._crashed_out_comes_home(i, scale, how, now))
                 continue
-            actions.append(self._start(i, k))
-            events.append(Event("restart", name, scale, scale,
-                                f"ended on {scale}: {report.ended[name]}"))
+            actions.append(self._start(i, k, now))
+            events.append(Event("restart", name, scale, scale, how))
         return actions, events
 
+    @staticmethod
+    def _not_running(name: str, scale: str, report: ScaleReport,
+                     acting: AbstractSet[str]) -> Optional[Tuple[str, str]]:
+        """Why `name`, due to run on `scale`, does not run there by `report`: ("ended" |
+        "paused" | "missing", the reason); None if it runs, or if an action under way for it
+        may be what the report shows (judged once that is over, unless the node ended)."""
+        if name in report.ended:
+            return "ended", f"ended on {scale}: {report.ended[name]}"
+        if name in acting or name in report.running:
+            return None
+        if name in report.paused:
+            return "paused", f"paused on {scale}, where it is due to run: resumed"
+        if report.listed is not None and name not in report.listed:
+            return "missing", (f"not listed by the agent of {scale} (a new agent: the one before "
+                               f"it stopped it)")
+        return None
+
     def _strays(self, reports, up, now, busy: AbstractSet[str]) -> List[StopNode]:
-        """Instances that run where the mapping does not place their node, with nothing under
-        way for the node that would explain them, to stop (at home, to pause, for a node
-        declared pause_at_home). They are a stop that failed: in a fault soak the robot's
-        agent was killed while AMCL moved out, the pause of AMCL's robot instance got
-        "connection refused", the agent's successor adopted the instance as running, and it
-        published beside the laptop's for 17.8 s; at home no lease would ever have ended it.
-        A remote instance that the link's return brings back into reach before its lease runs
-        out is one too, stopped here at once instead of at the lease's end. Only fresh reports
-        sampled after the node's latest start and stop were answered count: an earlier one
-        may still show an instance that the stop has ended since (also one that arrives late:
-        ScaleReport.sampled_at)."""
+        """Stops (pauses, at home, for pause_at_home) for instances running where the mapping
+        does not place their node and nothing under way for it explains them: a stop that did
+        not get through. Only reports sampled after the node's latest start and stop were
+        answered count (docs/design/decision_node.md, Strays)."""
         stops = []
         for i, name in enumerate(self.ch.node_names):
             if name in busy:
@@ -387,18 +457,15 @@ class DecisionEngine:
         return stops
 
     def _crashed_out_comes_home(self, i: int, scale: str, how: str, now: float) -> Event:
-        """A node with a paused instance at home that ended unasked on a remote scale is
-        brought home, as after a link loss, and held there for T. Resuming the paused instance
-        took 0.3-0.8 s to the first output; starting it again on the laptop took 2.4 s, as
-        each registration and parameter read crosses the link to the master on the robot's
-        quota (the fault soak: /amcl_pose silent 2.40 and 2.31 s after AMCL's SIGSEGV on the
-        laptop, Δ 2 s). The hold keeps a node that keeps crashing out there from bouncing."""
+        """Brings home, held for T, a node with a paused instance at home that ended unasked
+        on a remote scale: resuming it is faster than a restart out there, whose master calls
+        cross the link (docs/design/decision_node.md, Restarts); the hold stops a bounce."""
         self.assign[i] = self.ch.master
         self.migrated_back_at[i] = now
         self.objective.change(now, perf(self.ch, self.assign))
         home = self.ch.scale_names[self.ch.master]
         return Event("migrate_back", self.ch.node_names[i], scale, home,
-                     f"ended on {scale}: {how}; its paused instance at home resumed, held "
+                     f"{how}; its paused instance at home resumed, held "
                      f"there for {self.params.hysteresis_s:g} s")
 
     def handoff_overrides(self, name: str) -> Tuple[Tuple[str, float], ...]:
@@ -407,10 +474,13 @@ class DecisionEngine:
             return ()
         return tuple(sorted(self.handoff.get(name, {}).items()))
 
-    def _start(self, i: int, k: int) -> StartNode:
+    def _start(self, i: int, k: int, now: float) -> StartNode:
+        """Node i's start on scale k, with what it is expected to use there: a shared scale's
+        ledger admits it against that (the live estimate the allocators planned with)."""
         name = self.ch.node_names[i]
         lease = 0.0 if k == self.ch.master else self.params.lease_s
-        return StartNode(name, self.ch.scale_names[k], self.handoff_overrides(name), lease)
+        return StartNode(name, self.ch.scale_names[k], self.handoff_overrides(name), lease,
+                         self.learning.cost(i, k, now), float(self.ch.memory[i]))
 
     def _renewals(self, up) -> List[RenewLeases]:
         renewals = []

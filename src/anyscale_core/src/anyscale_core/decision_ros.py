@@ -17,37 +17,24 @@ from geometry_msgs.msg import PoseWithCovarianceStamped
 
 from . import ros_convert as conv
 from .agent_actions_ros import REGISTER_TIMEOUT_S, AgentActions
-from .agent_client import AgentClient, CallFailures, Worker
+from .agent_client import AgentClient, Worker
 from .cost import perf
+from .cost_estimates_ros import CostEstimatesOut
 from .decision_engine import DecisionEngine
 from .decision_params import NodeParams, ParamError, prepare_decision, read_params
-from .decision_types import RenewLeases, StartNode, silent_scales
+from .decision_types import StartNode, silent_scales
+from .link_forecast_ros import LinkForecastRos
 from .model import ModelError
 from .process_priority import set_own_nice
 from .restart_state import encode, worth_writing
+from .status_check import status_problem
 
 # A remote scale's status silent this long while the robot's uplink is up: a new connection.
 RESUBSCRIBE_AFTER_S = 5.0
 
-# The engine's holds (T after a return, each node's hold after a link loss) for a decision node
-# started after this one (restart_state.py says what and why). Kept on the parameter server,
-# not in a file or in the agents' reports:
-# - a private parameter outlives the node's process, whichever way it is restarted: forked again
-#   by its warm standby (--warm-restart) or respawned by roslaunch, which sets parameters once,
-#   at launch, and leaves them as they are on a respawn;
-# - it belongs to the ROS system it was written in: a new roscore (a new launch of the robot)
-#   starts without it, where a file under ROS_HOME would be read by the next launch, or by a
-#   second system (two test beds) on the same machine; a roscore restart within a run gets it
-#   back from the master keeper's snapshot with every other parameter (master_restore.py);
-# - the agents know when they started each instance, but not whether a start at home was a
-#   return, nor when the link was lost; carrying that there would take a message change and
-#   the C++ agent for what one parameter holds.
-# Written when it changes (restart_state.worth_writing; a tick at most one period after the
-# change, so a node killed within that period may lose the latest) and, while nodes are out, at
-# least every STATE_REFRESH_S: its saved_at then says the mapping was current, so a restart
-# that comes within T finds the nodes whose lease ran out meanwhile and holds them home for T.
-# One write is one XML-RPC call to the local master, made on a worker thread of its own: a
-# master that is gone or slow holds no tick.
+# The engine's holds for the decision node started after this one (restart_state.py), written on
+# change and, while nodes are out, every STATE_REFRESH_S, from a worker of its own: a gone master
+# holds no tick. Why a parameter: docs/design/decision_node.md, "Its holds survive a restart".
 STATE_PARAM = "~restart_state"
 STATE_REFRESH_S = 2.0
 # What an XML-RPC call to the master raises when it is gone, does not answer, or breaks off.
@@ -55,11 +42,11 @@ MASTER_CALL_ERRORS = (OSError, http.client.HTTPException, xmlrpc.client.Error,
                       rospy.ROSException)
 
 
-class DecisionNode(AgentActions):
+class DecisionNode:
     def __init__(self, params: NodeParams):
         self.params = params
-        self.model, self.ch, allocator = prepare_decision(params.model, params.allocator,
-                                                         params.engine)
+        self.model, self.ch, allocator = prepare_decision(
+            params.model, params.allocator, params.engine, params.time_budget_s)
         self.master = self.model.master.name
         self.engine = DecisionEngine(self.ch, allocator, params.engine, time.monotonic())
         self._restore_state()
@@ -69,32 +56,23 @@ class DecisionNode(AgentActions):
         self.lock = threading.Lock()          # the engine and the reports, across threads
         self.wake = threading.Event()         # set: tick now (a link was lost, a node ended)
         self.reports: Dict[str, object] = {}
-        self.link_up: Dict[str, bool] = {}    # remote scale -> up, as of the latest tick
         self.statuses: Dict[str, ScaleStatus] = {}
         self.violating: List[str] = []
         self.state = None                     # DynamicState of the latest tick
-        self.watch_sent: Dict[str, tuple] = {}
-        self.starting = set()                 # (node, scale) of starts not yet answered
-        self.agents = AgentClient(params.service_timeout_s, params.stop_timeout_s,
-                                  params.stop_sigint_timeout_s)
-        # One worker per node: a slow start on one scale does not hold up another node's move.
-        self.node_workers = {n: Worker(f"anyscale_node_{n}") for n in self.ch.node_names}
-        self.scale_workers = {s: Worker(f"anyscale_{s}") for s in self.ch.scale_names}
-        self.call_failures = CallFailures()
-        self.handing_over = set()             # nodes whose old and new instance both run
-        self.node_jobs: Dict[str, int] = {}   # node -> its jobs queued or running on its worker
-        # instance paused at our request -> (its scale, when the pause was acknowledged)
-        self.pausing = {}
-        self.registrations = Worker("anyscale_registrations")
-        self.caller_id = rospy.get_name()
+        self.actions = AgentActions(
+            self.model, params, self.engine, self.lock,
+            AgentClient(params.service_timeout_s, params.stop_timeout_s,
+                        params.stop_sigint_timeout_s),
+            self.reports, self.statuses, self._publish_event, self._publish_mapping,
+            rospy.get_name())
         rospy.set_param("/anyscale/model", os.path.abspath(params.model))  # `anyscale top`
         self.mapping_pub = rospy.Publisher("/anyscale/mapping", MappingMsg, queue_size=1,
                                            latch=True)
         self.event_pub = rospy.Publisher("/anyscale/events", MigrationEvent, queue_size=50)
-        # diagnostic_updater reads ~diagnostic_period with get_param_cached on every update: a
-        # parameter that is not on the server is asked of the master each time, and the decision
-        # node died with a traceback in the seconds the master was gone (a roscore restart, a
-        # teardown). Set, it is answered from rospy's cache.
+        self.costs_out = CostEstimatesOut(self.engine, self.lock, params.learned_costs_out,
+                                          os.path.abspath(params.model), self.state_worker)
+        # On the server, diagnostic_updater's read at every update is answered from rospy's
+        # cache, never asked of a master that may be gone (a roscore restart, a teardown).
         rospy.set_param("~diagnostic_period", rospy.get_param("~diagnostic_period", 1.0))
         self.updater = diagnostic_updater.Updater()
         self.updater.setHardwareID("anyscale_decision")
@@ -102,6 +80,7 @@ class DecisionNode(AgentActions):
         self.updater.add("connections", self._diag_connections)
         self.updater.add("scales", self._diag_scales)
         self.updater.add("link and load", self._diag_link_and_load)
+        self.link_ahead = self._link_ahead()                 # the link ahead (issue 36)
         self.status_sub = rospy.Subscriber("/anyscale/status", ScaleStatus, self._on_status,
                                            queue_size=20)
         self.resubscribed_at = time.monotonic()
@@ -113,10 +92,21 @@ class DecisionNode(AgentActions):
 
     # --- inputs -------------------------------------------------------------------------------
     def _on_status(self, msg):
-        if msg.scale not in self.scale_workers:
+        if msg.scale not in self.ch.scale_names:
             rospy.logwarn_once("anyscale decision: status from scale '%s', which is not in %s",
                                msg.scale, self.params.model)
             return
+        problem = status_problem(msg)
+        if problem is not None:
+            # The scale's last good status stays; one that keeps coming bad goes stale like a
+            # silent one. Throttled per line: a sender repeating itself is one line a minute.
+            sender = (getattr(msg, "_connection_header", None) or {}).get("callerid", "?")
+            rospy.logwarn_throttle_identical(
+                60.0, "anyscale decision: refused a status of scale '%s' from %s: %s" %
+                (msg.scale[:80], sender, problem))
+            return
+        if self.link_ahead:
+            self.link_ahead.observe_status(msg)
         age = (rospy.Time.now() - msg.header.stamp).to_sec() if not msg.header.stamp.is_zero() \
             else math.nan
         report = conv.scale_report_from_msg(msg, time.monotonic(), self.ch.node_names, age)
@@ -153,21 +143,45 @@ class DecisionNode(AgentActions):
             next_tick = self._wait_for_tick(next_tick + self.params.period_s)
             if coming_up:
                 coming_up = self._initial_configuration_pending(coming_up, give_up_at)
+            forecasts = self.link_ahead.forecasts() if self.link_ahead else None
             with self.lock:
+                self.engine.set_link_forecast(forecasts)
                 before = self.engine.mapping()
+                starting, acting = self.actions.busy()
                 result = self.engine.tick(dict(self.reports), time.monotonic(),
-                                          moves_allowed=not coming_up,
-                                          starting={n for n, _ in self.starting},
-                                          acting=set(self.handing_over) | set(self.node_jobs))
+                                          moves_allowed=not coming_up, starting=starting,
+                                          acting=acting)
                 self.violating = result.violating
                 self.state = result.state
-                self.link_up = dict(result.state.link_up)
+                link_up = dict(result.state.link_up)
+                self.actions.link_up = link_up
+            if self.link_ahead:
+                self.link_ahead.observe_links(link_up)
             self._dispatch(result, before)
             self._save_state()
+            self.costs_out.publish()
             self._resubscribe_if_silent()
-            self._send_watch_lists()
-            self._purge_ghosts()
+            self.actions.send_watch_lists()
+            self.actions.purge_ghosts()
             self.updater.update()
+
+    # --- the link ahead (link_forecast_ros.py) ---------------------------------------------------
+    def _link_ahead(self):
+        """The link map and forecast, once a path topic is given (else None: the reactive rules
+        alone, said once in the log). With ~link_forecast false the map is still learned and
+        saved, but the engine does not use it."""
+        p = self.params.engine.link_forecast
+        if not p.path_topic:
+            rospy.loginfo("anyscale decision: no ~path_topic: no link map, no forecast; the "
+                          "reactive rules decide")
+            return None
+        link_ahead = LinkForecastRos(p, [s for s in self.ch.scale_names if s != self.master],
+                                     self.model.network.max_bandwidth_mbps)
+        rospy.on_shutdown(link_ahead.save)
+        # The engine's latest Anticipation: an immutable object, read without the lock.
+        self.updater.add("link ahead", lambda stat: link_ahead.diagnose(
+            stat, self.engine.anticipation.last, self.ch.node_names))
+        return link_ahead
 
     # --- across a restart of this node (STATE_PARAM) --------------------------------------------
     def _restore_state(self):
@@ -207,18 +221,16 @@ class DecisionNode(AgentActions):
                                    (rospy.resolve_name(STATE_PARAM), e))
 
     def _resubscribe_if_silent(self):
-        """After a long outage, TCP's retransmission backoff can hold a scale's status connection
-        silent for minutes after the link is back (a 100 s outage: no status in the next 50 s;
-        rospy sees no error on a connection that only waits): a scale silent for
-        RESUBSCRIBE_AFTER_S while the robot's uplink has its carrier gets a new connection, and so
-        does one never heard from (see silent_scales)."""
+        """A new status connection for a scale silent RESUBSCRIBE_AFTER_S while the robot's
+        uplink is up, or never heard from (silent_scales): TCP's retransmission backoff can hold
+        the old one silent for minutes after an outage, with no error rospy would see."""
         now = time.monotonic()
         if now - self.resubscribed_at < RESUBSCRIBE_AFTER_S:
             return
         with self.lock:
             master = self.reports.get(self.master)
             received = {s: r.received_at for s, r in self.reports.items()}
-        silent = silent_scales([s for s in self.scale_workers if s != self.master], received,
+        silent = silent_scales([s for s in self.ch.scale_names if s != self.master], received,
                                self.resubscribed_at, now, RESUBSCRIBE_AFTER_S)
         if not silent or master is None or not master.link_up:
             self.resubscribe_logged = []
@@ -244,7 +256,7 @@ class DecisionNode(AgentActions):
 
     def _initial_configuration_pending(self, pending, give_up_at):
         """The initial starts not yet reported RUNNING (none once give_up_at has passed)."""
-        pending = {(n, s) for n, s in pending if not self._agent_reports_running(s, n)}
+        pending = {(n, s) for n, s in pending if not self.actions.reports_running(s, n)}
         if pending and time.monotonic() < give_up_at:
             return pending
         if pending:
@@ -276,25 +288,16 @@ class DecisionNode(AgentActions):
     def _dispatch(self, result, before, initial=False):
         now_stamp = rospy.Time.now()
         decided = time.monotonic()
-        jobs: Dict[str, list] = {}
-        for action in result.actions:
-            if isinstance(action, RenewLeases):
-                self.scale_workers[action.scale].submit(
-                    lambda a=action: self._renew(a), key="renew")
-            else:
-                jobs.setdefault(action.node, []).append(action)
-                if isinstance(action, StartNode):
-                    with self.lock:
-                        self.starting.add((action.node, action.scale))
-        events = {e.node: e for e in result.events}
-        for node, actions in jobs.items():
-            self._submit_node_job(node, lambda n=node, a=actions, e=events.get(node):
-                                  self._execute_move(n, a, e, now_stamp, decided))
+        self.actions.dispatch(result.actions, {e.node: e for e in result.events}, now_stamp,
+                              decided)
+        started = {a.node for a in result.actions if isinstance(a, StartNode)}
+        for note in result.notes:                       # a failed move backed off, or reset
+            rospy.loginfo("anyscale decision: %s", note)
         for e in result.events:
             if e.kind == "restart":
                 rospy.logwarn("anyscale decision: %s ended (%s); starting it again", e.node,
                               e.reason)
-            elif not any(isinstance(a, StartNode) for a in jobs.get(e.node, ())):
+            elif e.node not in started:
                 # Adopted in place (at most a duplicate stopped): nothing to wait for.
                 self._publish_event(e.kind, e.node, e.from_scale, e.to_scale, e.reason,
                                     now_stamp, 0.0)
@@ -306,7 +309,7 @@ class DecisionNode(AgentActions):
             else:
                 rospy.loginfo("anyscale decision: initial mapping %s", after)
             self._publish_mapping()
-            self._send_watch_lists(force=initial)
+            self.actions.send_watch_lists(force=initial)
 
     # --- outputs ------------------------------------------------------------------------------
     def _publish_mapping(self):

@@ -2,36 +2,82 @@
 report in the engine's terms, and the actions and events of a tick (no ROS)."""
 from dataclasses import dataclass, field
 import math
-from typing import Dict, Iterable, List, Mapping, Tuple
+from typing import Dict, FrozenSet, Iterable, List, Mapping, Optional, Tuple
 
 from .constraints import DynamicState
+from .link_forecast import LinkForecastParams
+from .param_spec import declared
 from .restart_backoff import BackoffParams
 
 
 @dataclass(frozen=True)
+class LearningParams:
+    """What the decision engine learns from its placements (placement_learning.py), each
+    parameter declared once (param_spec)."""
+    plan_with_estimates: bool = declared(
+        True, "the allocators plan with the live CPU cost estimates (false: the model's)",
+        name="learn_costs")
+    cost_smoothing_s: float = declared(
+        5.0, "time constant of a cost estimate's average", "s", minimum=0.0)
+    cost_forget_s: float = declared(
+        300.0, "an estimate not refreshed relaxes to the model's figure over this (0: never)",
+        "s", minimum=0.0)
+    backoff_max_s: float = declared(
+        300.0, "a move sent back for rate or CPU waits T, 2T, ... up to this (0: no back-off)",
+        "s", name="placement_backoff_max_s", minimum=0.0)
+    success_s: float = declared(
+        60.0, "a stay this long resets the back-off of its move", "s",
+        name="placement_success_s", minimum=0.0)
+    retry_room: float = declared(
+        10.0, "a scale whose load fell this much ends a back-off early", "% of a scale",
+        name="placement_retry_room", minimum=0.0, maximum=100.0)
+
+
+@dataclass(frozen=True)
 class DecisionParams:
-    hysteresis_s: float = 10.0          # the paper's T: no re-migration this soon after a return
-    lease_s: float = 3.0                # remote instances end this long after the last renewal
-    status_timeout_s: float = 1.5       # a remote scale silent this long counts as link down
-    act_at_tolerance: float = 0.5       # move back once this share of a tolerance is spent
-    # ... or once a connection of a remote node has been silent for this share of its tolerance
-    # (0: off): see DecisionEngine._silent_connections.
-    act_at_silence: float = 0.35
-    startup_grace_s: float = 5.0        # a moved node's connections are not judged this long
-    cpu_smoothing_s: float = 2.0        # time constant of the background-load filter
-    restart: BackoffParams = BackoffParams()  # nodes that end unasked: at once, then backing off
-    bandwidth_hold_s: float = 5.0       # a move out needs the link to have shown its bandwidth
-    bandwidth_margin: float = 0.3       # this long, with this share above what it will carry
-    # A node out stays while the link measures its streams plus this share (<= bandwidth_margin,
-    # or what moved out would come back at once): the probe overrates what a stream gets.
-    bandwidth_stay_margin: float = 0.15
-    # A link measured below this is about to be lost: it counts as carrying nothing, so nodes
-    # come home while a handover can still cross it (0: off). See LinkCapacity.usable.
-    weak_link_mbps: float = 0.0
-    # After a link loss, a node moves out only once the link has been up this long (0: only
-    # bandwidth_hold_s), unless node_hold_after_loss_s names the node. See hold_after_loss.
-    hold_after_loss_s: float = 0.0
-    node_hold_after_loss_s: Mapping[str, float] = field(default_factory=dict)
+    """The decision engine's parameters, each declared once: its ROS parameter (~name), default,
+    unit, bounds and meaning (param_spec; the README's table is built from these)."""
+    hysteresis_s: float = declared(
+        10.0, "the paper's T: a node that came back does not leave again for this long", "s",
+        minimum=0.0)
+    lease_s: float = declared(
+        3.0, "lease of remote instances: their agent stops one not renewed for this long", "s",
+        minimum=0.1)
+    status_timeout_s: float = declared(
+        1.5, "a remote scale whose status is older counts as link down", "s", minimum=0.1)
+    act_at_tolerance: float = declared(
+        0.5, "move back once this share of a connection's tolerance is spent below freq_min",
+        "0..1", minimum=0.0, maximum=1.0)
+    act_at_silence: float = declared(
+        0.35, "move back once a remote node's connection was silent this share of its "
+        "tolerance (0: off)", "0..1", minimum=0.0, maximum=1.0)
+    startup_grace_s: float = declared(
+        5.0, "a moved or restarted node's connections are not judged this long", "s",
+        minimum=0.0)
+    cpu_smoothing_s: float = declared(
+        2.0, "time constant of the filter on each scale's background CPU load", "s",
+        minimum=0.0)
+    restart: BackoffParams = BackoffParams()
+    bandwidth_hold_s: float = declared(
+        5.0, "a move out needs the link to have held its streams plus the margin this long",
+        "s", minimum=0.0)
+    bandwidth_margin: float = declared(
+        0.3, "share above the streams' bandwidth a move out needs (the probe overrates a "
+        "stream's share)", "0..1", minimum=0.0)
+    bandwidth_stay_margin: float = declared(
+        0.15, "a node out stays while the link carries its streams plus this share "
+        "(<= ~bandwidth_margin)", "0..1", minimum=0.0)
+    weak_link_mbps: float = declared(
+        0.0, "a link measured below this carries nothing: nodes come home while a handover "
+        "can cross it (0: off)", "Mbit/s", minimum=0.0)
+    hold_after_loss_s: float = declared(
+        0.0, "after a link loss, no node moves out until the link was up this long (0: only "
+        "~bandwidth_hold_s)", "s", minimum=0.0)
+    node_hold_after_loss_s: Mapping[str, float] = declared(
+        {}, "a node's own hold after a loss, in place of ~hold_after_loss_s", "node: s")
+    learning: LearningParams = LearningParams()   # live cost estimates, failed moves' back-off
+    # The link map and the forecast along the planned path (link_anticipation.py, issue 36).
+    link_forecast: LinkForecastParams = LinkForecastParams()
 
     def hold_after_loss(self, node: str) -> float:
         """How long after a link loss `node` stays home: a node whose link-loss return fits
@@ -63,6 +109,13 @@ class ScaleReport:
     # link loss, statuses queued on the old connection arrive seconds after the answer to a
     # start made since, which came on a new one: received late, they are old all the same.
     sampled_at: float = math.nan
+    paused: FrozenSet[str] = frozenset()        # model nodes whose instance here is paused
+    # Model nodes the agent lists in any state but a warm standby; None: the report does not
+    # say (then no node counts as missing from it).
+    listed: Optional[FrozenSet[str]] = None
+    # A shared scale: % of its capacity its ledger holds for other robots' nodes (their
+    # reservations, which their actual CPU may not show yet); 0 on a scale of this robot's own.
+    cpu_held: float = 0.0
 
     def sample_time(self) -> float:
         return self.sampled_at if math.isfinite(self.sampled_at) else self.received_at
@@ -103,6 +156,10 @@ class StartNode:
     scale: str
     param_overrides: Tuple[Tuple[str, float], ...]
     lease_s: float                      # 0 on the master
+    # What the node is expected to use there (its live cost estimate, % of the scale, and the
+    # model's memory_mb): a shared scale's ledger holds it while the node runs.
+    cpu_percent: float = 0.0
+    memory_mb: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -146,3 +203,4 @@ class TickResult:
     events: List[Event]
     state: DynamicState
     violating: List[str]
+    notes: List[str] = field(default_factory=list)   # lines for the log (a move backed off)

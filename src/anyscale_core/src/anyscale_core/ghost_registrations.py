@@ -37,10 +37,9 @@ def pauses_under_way(pausing: Mapping[str, Tuple[str, Optional[float]]],
     """The instances to take for paused although no agent reports them so yet: instance ->
     (its scale, when its pause was acknowledged, or None while the call is under way), and
     scale -> when its latest status came (the same monotonic clock). Once a status of the scale
-    came PAUSE_SETTLED_S after the acknowledgement, the agent's report decides: an instance that
-    died while being paused (a SIGSEGV in the fault soak) is no longer reported paused, and its
-    registration is removed like any other ghost's, where before it stayed until the node was
-    started on that scale again (14.6 s of a misplaced /ar_markers publisher in the soak)."""
+    came PAUSE_SETTLED_S after the acknowledgement, the agent's report decides, so an instance
+    that died while being paused is purged like any other ghost (docs/measurements/
+    fault_soak.md)."""
     return {instance for instance, (scale, acked) in pausing.items()
             if acked is None or status_received.get(scale, -math.inf) < acked + PAUSE_SETTLED_S}
 

@@ -94,8 +94,10 @@ class SystemModel:
     nodes: Tuple[Node, ...]
     connections: Tuple[Connection, ...]
     source: str = "<model>"
-    _scale_index: Dict[str, Scale] = field(default_factory=dict, init=False, compare=False, repr=False)
-    _node_index: Dict[str, Node] = field(default_factory=dict, init=False, compare=False, repr=False)
+    _scale_index: Dict[str, Scale] = field(default_factory=dict, init=False, compare=False,
+                                           repr=False)
+    _node_index: Dict[str, Node] = field(default_factory=dict, init=False, compare=False,
+                                         repr=False)
 
     def __post_init__(self):
         self._scale_index.update({s.name: s for s in self.scales})

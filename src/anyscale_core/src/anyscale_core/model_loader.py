@@ -10,14 +10,21 @@ import yaml
 from .model import (INSTANCE_SEPARATOR, Connection, LaunchSpec, ModelError, Network, Node, Scale,
                     StateHandoff, SystemModel)
 
+# Each pattern must match the whole string (fullmatch: `$` also matched before a trailing
+# newline, and the CLI accepted a name the agent refuses).
 # A ROS graph resource name without namespace: what a node of the model may be called.
-_NODE_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+_NODE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
 _SCALE_NAME = _NODE_NAME
-_PACKAGE_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
+_PACKAGE_NAME = re.compile(r"[a-z][a-z0-9_]*")
 # An executable inside a package: a file name, never a path.
-_EXECUTABLE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.\-]*$")
-_TOPIC = re.compile(r"^/?[A-Za-z~][A-Za-z0-9_/]*$")
+_EXECUTABLE = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]*")
+_TOPIC = re.compile(r"/?[A-Za-z~][A-Za-z0-9_/]*")
 _HANDOFF_KINDS = ("pose",)
+# A node's launch.params, aliases expanded, hold at most this many values (scalars, lists and
+# maps) nested at most this deep, as the agent's model loader checks them (node_model.h): an
+# alias bomb of a dozen lines expands to billions, converted into parameters at every start.
+MAX_PARAM_VALUES = 10000
+MAX_PARAM_DEPTH = 32
 
 
 def load_model(path: str) -> SystemModel:
@@ -101,7 +108,7 @@ class _Reader:
                what: str = "") -> str:
         if not isinstance(value, str) or not value:
             self.fail(key, f"expected a non-empty string, got {_describe(value)}")
-        if pattern is not None and not pattern.match(value):
+        if pattern is not None and not pattern.fullmatch(value):
             self.fail(key, f"expected {what}, got {value!r}")
         return value
 
@@ -263,12 +270,35 @@ def _parse_launch(r: _Reader, value: Any, key: str) -> LaunchSpec:
     remaps = tuple((r.string(k, f"{key}.remaps"), r.string(v, f"{key}.remaps.{k}"))
                    for k, v in r.mapping(d.get("remaps", {}) or {}, f"{key}.remaps").items())
     params = tuple(r.mapping(d.get("params", {}) or {}, f"{key}.params").items())
-    for pname, _ in params:
+    budget = [MAX_PARAM_VALUES]
+    for pname, value in params:
         r.string(pname, f"{key}.params", _NODE_NAME, "a parameter name")
+        _check_param_value(r, value, f"{key}.params.{pname}", budget, 1)
     nice = r.integer(d.get("nice", 0), f"{key}.nice", -20, 19)
     return LaunchSpec(package, exe, args, remaps, params,
                       r.boolean(d.get("warm_start", False), f"{key}.warm_start"), nice,
                       r.boolean(d.get("pause_at_home", False), f"{key}.pause_at_home"))
+
+
+def _check_param_value(r: _Reader, value: Any, key: str, budget: List[int], depth: int):
+    """A ROS parameter value walked as the agent converts it, every alias expanded, within
+    budget[0] values and MAX_PARAM_DEPTH levels."""
+    if budget[0] <= 0:
+        r.fail(key, f"launch.params hold more than {MAX_PARAM_VALUES} values with their YAML "
+                    f"aliases expanded")
+    budget[0] -= 1
+    if depth > MAX_PARAM_DEPTH:
+        r.fail(key, f"launch.params nested deeper than {MAX_PARAM_DEPTH} levels")
+    if value is None:
+        r.fail(key, "a null value cannot be a ROS parameter")
+    if isinstance(value, list):
+        for i, item in enumerate(value):
+            _check_param_value(r, item, f"{key}[{i}]", budget, depth + 1)
+    elif isinstance(value, Mapping):
+        for name, item in value.items():
+            if not isinstance(name, str):
+                r.fail(key, f"expected parameter names as keys, got {_describe(name)}")
+            _check_param_value(r, item, f"{key}.{name}", budget, depth + 1)
 
 
 def _parse_handoff(r: _Reader, value: Any, key: str) -> Optional[StateHandoff]:

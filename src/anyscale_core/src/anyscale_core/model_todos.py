@@ -35,9 +35,6 @@ class ModelWithTodos:
     model: SystemModel
     todos: FrozenSet[str]    # key paths that held TODO, e.g. "nodes.amcl.cpu_usage.laptop"
 
-    def is_todo(self, key: str) -> bool:
-        return key in self.todos
-
 
 def load_model_with_todos(path: str) -> ModelWithTodos:
     return parse_model_with_todos(read_yaml(path), path)

@@ -19,13 +19,3 @@ def set_own_nice(nice: int) -> Optional[str]:
         except OSError as e:
             return f"setpriority({tid}, {nice}): {e.strerror}"
     return None
-
-
-def thread_nices() -> List[int]:
-    nices = []
-    for tid in thread_ids():
-        try:
-            nices.append(os.getpriority(os.PRIO_PROCESS, tid))
-        except ProcessLookupError:
-            continue
-    return nices

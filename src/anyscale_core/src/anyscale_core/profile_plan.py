@@ -33,6 +33,9 @@ from dataclasses import dataclass, field
 from typing import Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
 
 from .characterisation import characterise
+# A scale busier than this over a window ran at its limit: its nodes' figures are shares (see
+# above); the decision node's cost estimates judge a scale by the same rule.
+from .cost_estimate import SATURATED_PERCENT
 from .model import ModelError, SystemModel
 from .model_todos import home_mapping
 from .model_update import CommentBlock, NumberEdit, node_paths
@@ -44,11 +47,6 @@ START_ESTIMATE_S = 3.0
 STOP_ESTIMATE_S = 1.0
 # Fewer samples than this in a window is no measurement (the agents sample at 2-5 Hz).
 MIN_SAMPLES = 3
-# A scale busier than this (% of its capacity, the agent's ScaleStatus.cpu_percent) over a window
-# ran at its limit: its nodes' figures are shares (see above). Not 100: the agents' samples are
-# not aligned with the quota's CFS periods, and a group throttled in every period still idles
-# in the few milliseconds between its processes' wake-ups.
-SATURATED_PERCENT = 90.0
 
 
 @dataclass(frozen=True)
@@ -202,9 +200,9 @@ def describe_measurement(m: Measurement) -> str:
                     + (f", {per_message[topic]:.1f} ms of CPU per message" if topic in per_message
                        else "")
                     for topic, hz in sorted(m.output_rates.items()))
-    busy = ("" if not math.isfinite(m.scale_busy) else
-            f"; the scale {m.scale_busy:.0f} % busy" + (", at its limit: the figure is the share "
-                                                       "the node got" if m.saturated else ""))
+    limit = ", at its limit: the figure is the share the node got" if m.saturated else ""
+    busy = (f"; the scale {m.scale_busy:.0f} % busy{limit}" if math.isfinite(m.scale_busy)
+            else "")
     return (f"{m.scale} {m.cpu_usage:g} % ({m.cpu_one_core:.1f} % of one core, sd "
             f"{m.cpu_sd:.1f}, {m.samples} samples; scale capacity {capacity}){rates}{busy}")
 

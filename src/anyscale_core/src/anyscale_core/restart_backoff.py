@@ -9,12 +9,19 @@ input) must not be restarted many times a second for ever.
 import math
 from dataclasses import dataclass
 
+from .param_spec import declared
+
 
 @dataclass(frozen=True)
 class BackoffParams:
-    first_delay_s: float = 1.0      # before the second restart in a row (the first is at once)
-    max_delay_s: float = 30.0       # the delays double up to this
-    reset_after_s: float = 30.0     # a node that ran this long since its last restart starts over
+    first_delay_s: float = declared(
+        1.0, "a node that ended unasked starts again at once, then after this, doubling", "s",
+        name="restart_delay_s", minimum=0.0)
+    max_delay_s: float = declared(30.0, "the doubling stops here", "s",
+                                  name="restart_delay_max_s", minimum=0.0)
+    reset_after_s: float = declared(
+        30.0, "a node that ran this long since its last restart starts over at once", "s",
+        name="restart_reset_s", minimum=0.0)
 
 
 class RestartBackoff:

@@ -3,8 +3,9 @@ Python, no ROS): the decision engine's holds in time, encoded with wall-clock ti
 
 Why. The paper's hysteresis says that a node brought home is not moved out again for T
 (hysteresis_s), and after a link loss no node moves out until the link has been up for its
-hold after a loss (hold_after_loss_s, node_hold_after_loss_s). Both are times the engine keeps in memory: when each node was last brought
-home (DecisionEngine.migrated_back_at) and when the link was last seen down (BandwidthHold).
+hold after a loss (hold_after_loss_s, node_hold_after_loss_s). Both are times the engine keeps
+in memory: when each node was last brought home (DecisionEngine.migrated_back_at) and when the
+link was last seen down (BandwidthHold).
 The decision node is restarted when it dies (its warm standby forks a new one, or roslaunch
 respawns it), and a new engine that knows neither moves nodes out again as soon as the link
 has shown its bandwidth for bandwidth_hold_s (5 s): inside T, and inside the hold after a loss.
@@ -25,9 +26,9 @@ safe sides to err on; restart back-offs and rate trackers start afresh as for a 
 Clocks. The engine runs on a monotonic clock, which does not carry across processes: times are
 stored as wall-clock (time.time()) and converted back with the new process's pair (wall, engine
 now). A stored time in the future (the wall clock stepped back) counts as now: its hold runs in
-full, on the safe side. A state saved longer ago than the longest hold it could feed (T,
-the longest hold after a loss) is ignored as a whole: a restart that slow (or a state left by an earlier
-run) holds nothing any more.
+full, on the safe side. A state saved longer ago than the longest hold it could feed (T, the
+longest hold after a loss) is ignored as a whole: a restart that slow (or a state left by an
+earlier run) holds nothing any more.
 
 Malformed state (not JSON, another version, a time that is no number) raises
 RestartStateError with what was wrong; the engine then starts fresh (DecisionEngine.

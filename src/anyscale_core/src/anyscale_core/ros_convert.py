@@ -2,7 +2,8 @@
 import math
 from typing import Dict, Iterable, List, Mapping, Sequence, Tuple
 
-from anyscale_msgs.msg import MigrationEvent, NodeAssignment, NodeProcess
+from anyscale_msgs.msg import (CostEstimate, CostEstimates, MigrationEvent, NodeAssignment,
+                               NodeProcess)
 from anyscale_msgs.msg import Mapping as MappingMsg
 from diagnostic_msgs.msg import KeyValue
 
@@ -12,6 +13,9 @@ from .model import SystemModel
 # A node counts as running on a scale from its fork on: adopting a STARTING node avoids
 # starting a duplicate while it is still importing.
 ALIVE_STATES = (NodeProcess.STARTING, NodeProcess.RUNNING)
+# Ended there: by itself or a stop, or by its lease (a lease of a microsecond, or renewals that
+# did not come, on the scale the node is due to run on).
+ENDED_STATES = (NodeProcess.EXITED, NodeProcess.LEASE_EXPIRED)
 
 EVENT_KINDS = {"start": MigrationEvent.START, "migrate": MigrationEvent.MIGRATE,
                "migrate_back": MigrationEvent.MIGRATE_BACK, "adopt": MigrationEvent.ADOPT,
@@ -34,8 +38,12 @@ def scale_report_from_msg(msg, received_at: float, model_node_names: Iterable[st
     running = {model_node_name(p.name): float(p.cpu_percent) for p in msg.nodes
                if p.state in ALIVE_STATES and model_node_name(p.name) in names}
     ended = {model_node_name(p.name): how_it_ended(p) for p in msg.nodes
-             if p.state == NodeProcess.EXITED
+             if p.state in ENDED_STATES
              and model_node_name(p.name) in names and model_node_name(p.name) not in running}
+    paused = frozenset(model_node_name(p.name) for p in msg.nodes
+                       if p.state == NodeProcess.PAUSED and model_node_name(p.name) in names)
+    listed = frozenset(model_node_name(p.name) for p in msg.nodes
+                       if p.state != NodeProcess.STANDBY and model_node_name(p.name) in names)
     standby = sum(float(p.cpu_percent) for p in msg.nodes if p.state == NodeProcess.STANDBY)
     rates = {t.topic: effective_rate(float(t.rate_hz), float(t.last_message_age_s))
              for t in msg.topics}
@@ -48,17 +56,22 @@ def scale_report_from_msg(msg, received_at: float, model_node_names: Iterable[st
     sampled_at = received_at - max(sample_age_s, 0.0) if math.isfinite(sample_age_s) \
         else math.nan
     return ScaleReport(msg.scale, received_at, float(msg.cpu_percent), capacity, running,
-                       rates, link_up, bandwidth, standby, ended, silence, sampled_at)
+                       rates, link_up, bandwidth, standby, ended, silence, sampled_at, paused,
+                       listed, float(msg.cpu_held_percent))
 
 
 def how_it_ended(process) -> str:
-    """'signal N' or 'exit code N' of a process that ended, and where its log is."""
+    """'signal N' or 'exit code N' of a process that ended (its lease's end for one the agent
+    stopped on it), and where its log is."""
     how = f"signal {process.exit_signal}" if process.exit_signal else \
         f"exit code {process.exit_code}"
+    if process.state == NodeProcess.LEASE_EXPIRED:
+        how = f"its lease ran out ({how})"
     return f"{how}, log {process.log_file}" if process.log_file else how
 
 
-def watched_topics(model: SystemModel, mapping: Mapping[str, str]) -> Dict[str, List[Tuple[str, str]]]:
+def watched_topics(model: SystemModel,
+                   mapping: Mapping[str, str]) -> Dict[str, List[Tuple[str, str]]]:
     """Per scale, (topic, subscriber) for each of the model's connections whose subscriber
     runs there: the agent counts the topic once it runs that node, without waiting for the
     master's graph to show the subscription (SetWatchedTopics.srv)."""
@@ -117,6 +130,23 @@ def event_msg(kind: str, node: str, from_scale: str, to_scale: str, reason: str,
                          success=success)
     msg.header.stamp = stamp
     return msg
+
+
+def cost_estimates_msg(rows, stamp) -> CostEstimates:
+    """placement_learning.PlacementRow's as the message top and the test bed's record read."""
+    msg = CostEstimates(estimates=[CostEstimate(
+        node=r.cost.node, scale=r.cost.scale, model_percent=r.cost.model,
+        live_percent=r.cost.live, measured_percent=r.cost.measured, samples=r.cost.samples,
+        lower_bound=r.cost.lower_bound, retry_in_s=r.retry_in_s, failures=r.failures,
+        reason=r.reason) for r in rows])
+    msg.header.stamp = stamp
+    return msg
+
+
+def cost_estimates_key(rows) -> tuple:
+    """What a CostEstimates message says, to the precision shown: unchanged, not sent again."""
+    return tuple((r.cost.node, r.cost.scale, round(r.cost.live), r.cost.samples > 0,
+                  r.cost.lower_bound, math.ceil(r.retry_in_s), r.failures) for r in rows)
 
 
 def describe_change(before: Mapping[str, str], after: Mapping[str, str],

@@ -11,6 +11,8 @@ from .model import SystemModel
 STATE_NAMES = {0: "STARTING", 1: "RUNNING", 2: "STOPPING", 3: "EXITED", 4: "REPLACED",
                5: "LEASE_EXPIRED", 6: "STANDBY", 7: "PAUSED"}
 STANDBY, PAUSED = 6, 7
+# The decision node's /diagnostics status of the link forecast (link_forecast_ros.diagnose).
+LINK_AHEAD = ": link ahead"
 KIND_NAMES = {0: "START", 1: "MIGRATE", 2: "MIGRATE_BACK", 3: "ADOPT", 4: "FAILED", 5: "RESTART"}
 
 
@@ -23,9 +25,12 @@ def _stamp_s(stamp) -> float:
 
 
 def render(statuses: Mapping[str, object], mapping, events: Sequence[object],
-           model: Optional[SystemModel], now: Optional[float] = None) -> str:
+           model: Optional[SystemModel], now: Optional[float] = None, costs=None,
+           link_ahead: Optional[object] = None) -> str:
     """One frame. statuses: scale -> latest ScaleStatus; mapping: the latest Mapping message or
-    None; events: MigrationEvent messages, oldest first; now: ROS time in s (lease times)."""
+    None; events: MigrationEvent messages, oldest first; now: ROS time in s (lease times);
+    costs: the latest CostEstimates message or None; link_ahead: the decision node's latest
+    "link ahead" DiagnosticStatus, if any."""
     out: List[str] = []
     assigned = {a.node: a.scale for a in mapping.assignments} if mapping else {}
     if mapping is not None:
@@ -53,6 +58,9 @@ def render(statuses: Mapping[str, object], mapping, events: Sequence[object],
             out.append(f"uplink of {scale}: {link.uplink_interface}, " +
                        ("carrier" if link.carrier else
                         "NO CARRIER: every other scale is out of reach"))
+    if link_ahead is not None:
+        out += [f"link ahead ({kv.key}): {kv.value}" for kv in link_ahead.values]
+        out.append(f"link ahead: {link_ahead.message}")
     out += ["", f"{'NODE':<20} {'SCALE':<10} {'STATE':<13} {'CPU':>7} {'RSS':>9} {'LEASE':>7}"]
     rows: Dict[str, List[str]] = {}
     standbys: List[str] = []
@@ -102,6 +110,8 @@ def render(statuses: Mapping[str, object], mapping, events: Sequence[object],
             rate_text = _number_or_dash(rate, '.1f', ' Hz')
             out.append(f"{label[:40]:<40} {rate_text:>8} {c.freq_min:>6g} "
                        f"{c.freq_opt:>6g}  {status}" + (" (critical)" if c.tolerance == 0 else ""))
+    if costs is not None:
+        out += [""] + cost_lines(costs)
     out += ["", "LAST EVENTS (received since top started)"]
     for e in list(events)[-8:]:
         dur = _number_or_dash(e.duration_s, ".2f", " s")
@@ -113,12 +123,29 @@ def render(statuses: Mapping[str, object], mapping, events: Sequence[object],
     return "\n".join(out)
 
 
+def cost_lines(costs) -> List[str]:
+    """The decision node's live cost estimates beside the model's figures (% of the scale's
+    capacity; "≥": learned on a saturated scale, a lower bound), and the moves backed off."""
+    out = [f"{'CPU COST (% of the scale)':<32} {'MODEL':>6} {'LIVE':>7} {'LEARNED':>8} "
+           f"{'REPORTS':>8}  BACK-OFF"]
+    for c in costs.estimates:
+        learned = "-" if not c.samples else \
+            ("≥" if c.lower_bound else "") + _number_or_dash(c.measured_percent, ".1f")
+        backoff = "-" if not c.failures else (
+            f"{c.failures} failed in a row" + (f", {c.retry_in_s:.0f} s left"
+                                               if c.retry_in_s > 0 else "") + f": {c.reason}")
+        out.append(f"{c.node + ' on ' + c.scale:<32} {c.model_percent:>6g} "
+                   f"{c.live_percent:>7.1f} {learned:>8} {c.samples:>8}  {backoff}")
+    return out
+
+
 def run(model_path: Optional[str], once: bool, period_s: float = 1.0, wait_s: float = 10.0) -> int:
     """Subscribe and redraw every period_s; with once, print one frame after the first data."""
     import rosgraph
     import rospy
+    from anyscale_msgs.msg import CostEstimates, MigrationEvent, ScaleStatus
     from anyscale_msgs.msg import Mapping as MappingMsg
-    from anyscale_msgs.msg import MigrationEvent, ScaleStatus
+    from diagnostic_msgs.msg import DiagnosticArray
 
     from .model_loader import load_model
 
@@ -130,7 +157,7 @@ def run(model_path: Optional[str], once: bool, period_s: float = 1.0, wait_s: fl
     model_path = model_path or rospy.get_param("/anyscale/model", None)
     model = load_model(model_path) if model_path else None
     lock = threading.Lock()
-    statuses, events, latest = {}, [], {"mapping": None}
+    statuses, events, latest = {}, [], {"mapping": None, "costs": None, "link_ahead": None}
 
     def on_status(msg):
         with lock:
@@ -145,9 +172,21 @@ def run(model_path: Optional[str], once: bool, period_s: float = 1.0, wait_s: fl
         with lock:
             latest["mapping"] = msg
 
+    def on_costs(msg):
+        with lock:
+            latest["costs"] = msg
+
+    def on_diagnostics(msg):
+        for status in msg.status:
+            if status.hardware_id == "anyscale_decision" and status.name.endswith(LINK_AHEAD):
+                with lock:
+                    latest["link_ahead"] = status
+
+    rospy.Subscriber("/diagnostics", DiagnosticArray, on_diagnostics, queue_size=5)
     rospy.Subscriber("/anyscale/status", ScaleStatus, on_status, queue_size=20)
     rospy.Subscriber("/anyscale/events", MigrationEvent, on_event, queue_size=50)
     rospy.Subscriber("/anyscale/mapping", MappingMsg, on_mapping, queue_size=1)
+    rospy.Subscriber("/anyscale/cost_estimates", CostEstimates, on_costs, queue_size=1)
     try:
         if once:
             # One frame once every scale has reported (or wait_s passed) and the mapping is in.
@@ -161,7 +200,8 @@ def run(model_path: Optional[str], once: bool, period_s: float = 1.0, wait_s: fl
         while True:
             with lock:
                 frame = render(dict(statuses), latest["mapping"], list(events), model,
-                               rospy.Time.now().to_sec())
+                               rospy.Time.now().to_sec(), latest["costs"],
+                               latest["link_ahead"])
             if once:
                 print(frame)
                 return 0 if statuses else 1

@@ -31,7 +31,7 @@ import os
 import signal
 import sys
 import time
-from typing import Callable, List, Optional
+from typing import Callable, Optional
 
 from .restart_backoff import BackoffParams, RestartBackoff
 
@@ -164,11 +164,3 @@ def _comm() -> str:
 def _set_comm(name: str):
     # The kernel keeps 15 bytes of a comm.
     ctypes.CDLL(None).prctl(PR_SET_NAME, ctypes.c_char_p(name.encode()[:15]), 0, 0, 0)
-
-
-def strip_flag(argv: List[str], flag: str) -> bool:
-    """Whether `flag` is among the arguments after argv[0]; removed from argv if so."""
-    if flag not in argv[1:]:
-        return False
-    argv.remove(flag)
-    return True

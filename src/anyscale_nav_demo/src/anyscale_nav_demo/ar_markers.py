@@ -1,4 +1,5 @@
-"""ArUco markers: render them into a simulated pinhole camera's image, and detect them (cv2.aruco)."""
+"""ArUco markers: render them into a simulated pinhole camera's image, and detect them
+(cv2.aruco)."""
 import math
 
 import cv2
@@ -127,8 +128,9 @@ class MarkerDetector:
 def rotation_to_quaternion(R):
     """(x, y, z, w) of a rotation matrix."""
     R = np.asarray(R, dtype=float)
-    w = math.sqrt(max(0.0, 1.0 + R[0, 0] + R[1, 1] + R[2, 2])) / 2.0
-    x = math.copysign(math.sqrt(max(0.0, 1.0 + R[0, 0] - R[1, 1] - R[2, 2])) / 2.0, R[2, 1] - R[1, 2])
-    y = math.copysign(math.sqrt(max(0.0, 1.0 - R[0, 0] + R[1, 1] - R[2, 2])) / 2.0, R[0, 2] - R[2, 0])
-    z = math.copysign(math.sqrt(max(0.0, 1.0 - R[0, 0] - R[1, 1] + R[2, 2])) / 2.0, R[1, 0] - R[0, 1])
+    r00, r11, r22 = R[0, 0], R[1, 1], R[2, 2]
+    w = math.sqrt(max(0.0, 1.0 + r00 + r11 + r22)) / 2.0
+    x = math.copysign(math.sqrt(max(0.0, 1.0 + r00 - r11 - r22)) / 2.0, R[2, 1] - R[1, 2])
+    y = math.copysign(math.sqrt(max(0.0, 1.0 - r00 + r11 - r22)) / 2.0, R[0, 2] - R[2, 0])
+    z = math.copysign(math.sqrt(max(0.0, 1.0 - r00 - r11 + r22)) / 2.0, R[1, 0] - R[0, 1])
     return (x, y, z, w)

@@ -42,7 +42,8 @@ def grid_graph(cost, resolution, cost_factor):
         b = (slice(dr, h), slice(max(0, dc), w + min(0, dc)))
         both = ok[a] & ok[b]
         length = resolution * math.hypot(dr, dc)
-        wgt = length * (1.0 + cost_factor * (cost[a][both].astype(float) + cost[b][both]) / (2 * 252.0))
+        pair_cost = cost[a][both].astype(float) + cost[b][both]
+        wgt = length * (1.0 + cost_factor * pair_cost / (2 * 252.0))
         rows += [idx[a][both], idx[b][both]]
         cols += [idx[b][both], idx[a][both]]
         weights += [wgt, wgt]
@@ -62,7 +63,8 @@ class NavigationFunction:
         if goal is None:
             raise ValueError("goal %s is not in traversable space" % (goal_xy,))
         self.goal_cell = goal
-        self.dist, self.pred = dijkstra(graph, directed=True, indices=goal[0] * self.shape[1] + goal[1],
+        self.dist, self.pred = dijkstra(graph, directed=True,
+                                        indices=goal[0] * self.shape[1] + goal[1],
                                         return_predecessors=True)
 
     def to_cell(self, xy):

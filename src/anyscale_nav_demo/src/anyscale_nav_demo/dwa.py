@@ -21,9 +21,9 @@ class DWAConfig:
 
 def scan_obstacle_points(sensor_pose, ranges, angle_min, angle_increment, range_min,
                          max_range=3.0):
-    """(N, 2) points, in the frame sensor_pose is given in, of the laser returns between range_min and
-    max_range: the obstacles choose_velocity checks the arcs against. Every second return is
-    kept, which halves the KD-tree's work."""
+    """(N, 2) points, in the frame sensor_pose is given in, of the laser returns between
+    range_min and max_range: the obstacles choose_velocity checks the arcs against. Every second
+    return is kept, which halves the KD-tree's work."""
     x, y, th = sensor_pose
     r = np.asarray(ranges)
     a = angle_min + np.arange(len(r)) * angle_increment

@@ -112,6 +112,8 @@ def _partitions_and_doors(grid, res, c0, c1, corridor, wall, depth, width, door,
                 if (outer and abs(door_mid - marker_s) < 1.0) or count % every == 0:
                     continue  # the marker's wall, or a closed door
                 _door(grid, res, side, outer, door_mid, door, wall, out_lo, out_hi, in_lo, in_hi)
+
+
 def _door(grid, res, side, outer, s, door, wall, out_lo, out_hi, in_lo, in_hi):
     """Open a door gap in the corridor wall at position s along the given leg."""
     w = [out_lo - wall, out_lo] if outer else [in_lo, in_lo + wall]

@@ -98,7 +98,8 @@ def _read_pgm(path):
     else:
         values = raw[pos:].split()
         if len(values) < width * height:
-            raise MapError("%s: PGM data truncated (%d of %d values)" % (path, len(values), width * height))
+            raise MapError("%s: PGM data truncated (%d of %d values)"
+                           % (path, len(values), width * height))
         img = np.array([int(v) for v in values[:width * height]]).reshape(height, width)
     return img.astype(np.float64) * (255.0 / maxval)
 
@@ -122,7 +123,8 @@ def _require(meta, key, kind, yaml_path):
     try:
         return kind(meta[key])
     except (TypeError, ValueError):
-        raise MapError("%s: key '%s' must be %s, got %r" % (yaml_path, key, kind.__name__, meta[key]))
+        raise MapError("%s: key '%s' must be %s, got %r"
+                       % (yaml_path, key, kind.__name__, meta[key]))
 
 
 def grey_to_occupancy(grey, negate, occupied_thresh, free_thresh, mode="trinary"):

@@ -158,6 +158,11 @@ def kld_sample_count(k, err, z, n_min, n_max):
     return np.clip(out, n_min, n_max)
 
 
+def _running_average(average, sample, alpha):
+    """amcl's exponential average of the mean weight; 0 means none yet: the sample starts it."""
+    return sample if average == 0 else average + alpha * (sample - average)
+
+
 def systematic_resample(weights, n, rng):
     """Indices of n draws by low-variance (systematic) resampling."""
     cdf = np.cumsum(weights)
@@ -221,8 +226,8 @@ class ParticleFilter:
         self.weights = w / total
         w_avg = float(np.mean(p))
         if self.alpha_slow > 0:
-            self.w_slow = w_avg if self.w_slow == 0 else self.w_slow + self.alpha_slow * (w_avg - self.w_slow)
-            self.w_fast = w_avg if self.w_fast == 0 else self.w_fast + self.alpha_fast * (w_avg - self.w_fast)
+            self.w_slow = _running_average(self.w_slow, w_avg, self.alpha_slow)
+            self.w_fast = _running_average(self.w_fast, w_avg, self.alpha_fast)
 
     def resample(self):
         """KLD-adaptive resampling with random injection when the fit drops (recovery)."""

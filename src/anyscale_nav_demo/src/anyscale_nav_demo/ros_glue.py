@@ -7,12 +7,10 @@ import sys
 import rospy
 from geometry_msgs.msg import Pose, PoseWithCovariance, Quaternion, TransformStamped
 
+from anyscale_core.param_spec import REQUIRED, Param, ParamError  # noqa: F401 (re-exported)
+
 from .geometry import quaternion_to_yaw, yaw_to_quaternion
 from .occupancy_map import MapError
-
-
-class ParamError(Exception):
-    """A parameter is missing or out of range; the message names it."""
 
 
 _MISSING = object()
@@ -43,38 +41,27 @@ def raw_param(name, default):
     return default if value is _MISSING else value
 
 
-def param(name, default=None, kind=float, check=None, what="valid"):
-    """A parameter with a type conversion and a check; raises ParamError naming the param."""
-    full = rospy.resolve_name(name)
-    raw = _lookup(name)
-    if raw is _MISSING:
-        if default is None:
-            raise ParamError("required parameter %s is not set" % full)
-        raw = default
-    try:
-        value = kind(raw)
-    except (TypeError, ValueError):
-        raise ParamError("parameter %s must be %s, got %r" % (full, kind.__name__, raw))
-    if check is not None and not check(value):
-        raise ParamError("parameter %s must be %s, got %r" % (full, what, raw))
-    return value
+_KINDS = {float: "float", int: "int", str: "text", bool: "bool"}
+
+
+def param(name, default=REQUIRED, kind=float, **bounds):
+    """A parameter of type `kind` checked by param_spec.Param (minimum=, maximum=, above=);
+    ParamError names it by its resolved name."""
+    spec = Param(rospy.resolve_name(name), default, "", kind=_KINDS.get(kind, kind), **bounds)
+    return spec.read(lambda _, fallback: raw_param(name, fallback), prefix="")
 
 
 def flag(name, default):
     """A true/false parameter; anything else (the string "false", 0) is refused by name."""
-    value = raw_param(name, default)
-    if not isinstance(value, bool):
-        raise ParamError("parameter %s must be true or false, got %r"
-                         % (rospy.resolve_name(name), value))
-    return value
+    return param(name, default, bool)
 
 
 def positive(name, default, kind=float):
-    return param(name, default, kind, lambda v: v > 0, "> 0")
+    return param(name, default, kind, minimum=0, above=True)
 
 
 def non_negative(name, default, kind=float):
-    return param(name, default, kind, lambda v: v >= 0, ">= 0")
+    return param(name, default, kind, minimum=0)
 
 
 def run_node(name, build, anonymous=False):

@@ -90,7 +90,7 @@ def _critical_roles(n_critical: int) -> List[str]:
 
 
 def generate_model(n_nodes: int, n_migratable: int, n_scales: int,
-                    rng: np.random.Generator) -> SystemModel:
+                   rng: np.random.Generator) -> SystemModel:
     """A Fig. 3-like sensing -> processing -> navigation pipeline of n_nodes nodes (input-data
     nodes extra), n_migratable of them migratable, on n_scales scales; validated by parse_model."""
     if n_scales < 1 or n_nodes < 1 or not 0 <= n_migratable < n_nodes:
@@ -123,7 +123,10 @@ def generate_model(n_nodes: int, n_migratable: int, n_scales: int,
 def _wire(draw, sensors, critical, n_migratable):
     """Connections of the pipeline, and each migratable node's freq_opt/freq_min (its output's)."""
     conns = []
-    by_kind = lambda kind: [n for n, k in sensors if k == kind] or [sensors[0][0]]
+
+    def by_kind(kind):
+        return [n for n, k in sensors if k == kind] or [sensors[0][0]]
+
     names = {role: [n for n, r in critical if r == role] for role in ("fusion", "preproc")}
     estimators = names["fusion"] or ["navigation"]
     # The critical chain, with Table I's tolerance-0 rows: Laser-Navigation, EKF-Navigation,

@@ -115,9 +115,9 @@ class SpeedModel:
 
     @staticmethod
     def of(ch: Characterisation) -> "SpeedModel":
-        ideal = make_allocator("optimal").decide(ch, ch.initial_mapping(),
-                                                 DynamicState(FULL_USABLE_MBPS),
-                                                 AllocationContext()).assign
+        exact = make_allocator("optimal", time_budget_s=None)
+        ideal = exact.decide(ch, ch.initial_mapping(), DynamicState(FULL_USABLE_MBPS),
+                             AllocationContext()).assign
         return SpeedModel(perf(ch, ch.initial_mapping()), perf(ch, ideal))
 
     def speed(self, perf_value: float) -> float:
@@ -141,10 +141,11 @@ class _Policy:
     """An allocator as the decision loop calls it once per period: step(), which for the paper's
     heuristic is one iteration of Algorithm 1 and for the others a full decision. None never
     moves. Allocators are pure functions of their inputs and states repeat along the loop, so
-    decisions are cached."""
+    decisions are cached. The study judges decisions, not how fast this host makes them: no
+    time budget, so a run is the same on any host."""
 
     def __init__(self, name: Optional[str]):
-        self.allocator = make_allocator(name) if name else None
+        self.allocator = make_allocator(name, time_budget_s=None) if name else None
         self._cache = {}
 
     def __call__(self, ch, assign, state, ctx):

@@ -153,7 +153,10 @@ def format_table(summary: List[Dict], allocators: Sequence[str]) -> str:
     all configurations, each beside the paper's figure where it gives one."""
     heads = [f"{a} %" for a in allocators] + [f"best {a} %" for a in allocators]
     width = max(len(h) for h in heads) + 2
-    cell = lambda values: "".join(f"{_pct(v):>{width}}" for v in values)
+
+    def cell(values):
+        return "".join(f"{_pct(v):>{width}}" for v in values)
+
     lines = ["Improvement over no migration (1 - T_run / T_no_migration), mean of "
              f"{summary[0]['runs'] if summary else 0} runs per configuration",
              f"{'configuration':<14}{'coverage %':>11}" + "".join(f"{h:>{width}}" for h in heads)
@@ -164,7 +167,8 @@ def format_table(summary: List[Dict], allocators: Sequence[str]) -> str:
                      + cell([row[f"improvement_{a}"] for a in allocators]
                             + [row[f"best_improvement_{a}"] for a in allocators]) + f"{paper:>12}")
     if summary:
-        mean = lambda key: sum(r[key] for r in summary) / len(summary)
+        def mean(key):
+            return sum(r[key] for r in summary) / len(summary)
         lines.append(f"{'mean':<14}{_pct(mean('coverage')):>11}"
                      + cell([mean(f"improvement_{a}") for a in allocators]
                             + [mean(f"best_improvement_{a}") for a in allocators])

@@ -1,1 +1,2 @@
-"""AnyScale test bed (evaluation only): two scales on one machine, its link shaping and recorders."""
+"""AnyScale test bed (evaluation only): two scales on one machine, its link shaping and
+recorders."""

@@ -68,6 +68,16 @@ def interrupt_then_kill(proc: subprocess.Popen, timeout_s: float):
         proc.wait()
 
 
+def save_table(table: str, out_dir: str, name: str):
+    """A bench's closing table: printed, and written to out_dir/name."""
+    print(table)
+    os.makedirs(out_dir, exist_ok=True)
+    path = os.path.join(out_dir, name)
+    with open(path, "w") as f:
+        f.write(table + "\n")
+    print(f"bench: {path}")
+
+
 def latest_record(out_dir: str) -> Optional[TestbedRecord]:
     """The newest run's record below out_dir, None if there is none, it is unreadable, or its
     run did not end by itself: killed before its monitor ended (no finished_t: the monitor

@@ -6,8 +6,8 @@ the robot group beside Table II; the report that ends a run."""
 import statistics
 import time
 
-ROBOT_NODES = ["laser", "odometer", "camera", "base_driver", "user", "map_server", "odometry", "ekf",
-               "navigation", "amcl", "ar_recognition"]
+ROBOT_NODES = ["laser", "odometer", "camera", "base_driver", "user", "map_server", "odometry",
+               "ekf", "navigation", "amcl", "ar_recognition"]
 LAPTOP_NODES = ["amcl", "ar_recognition"]
 SIM = "world_sim"
 # topic -> (Table I freq_min, freq_opt)
@@ -19,6 +19,12 @@ def qname(q):
     return "none" if q <= 0 else "%.2f" % q
 
 
+def quota_cells(result):
+    """The robot's and the laptop's quota, as the tables' first two columns."""
+    laptop = "-" if result["laptop_q"] is None else qname(result["laptop_q"])
+    return "%-7s %-7s" % (qname(result["robot_q"]), laptop)
+
+
 def host_ms(result):
     value = result.get("host_ms")
     return float("nan") if value is None else value
@@ -28,7 +34,8 @@ def step_line(r):
     """One step's result in a line, as the bench logs it when the step ends."""
     return ("  /amcl_pose %.2f Hz, /ar_markers %.2f Hz, amcl %.1f %%, ar %.1f %% of a core, "
             "host workload %.1f ms"
-            % (r["rates"]["/amcl_pose"], r["rates"]["/ar_markers"], r["cpu"].get("amcl", float("nan")),
+            % (r["rates"]["/amcl_pose"], r["rates"]["/ar_markers"],
+               r["cpu"].get("amcl", float("nan")),
                r["cpu"].get("ar_recognition", float("nan")), host_ms(r)))
 
 
@@ -58,12 +65,12 @@ def print_table(title, results, nodes, laptop):
     cols = ["/amcl_pose", "/ar_markers", "/scan", "/joint_states", "/odom", "/odometry/filtered",
             "/camera/image_raw"]
     head = "%-7s %-7s" % ("robot", "laptop") + "".join("%9s" % c.split("/")[-1][:8] for c in cols)
-    print("rates (Hz; Table I min/opt: " + ", ".join("%s %d/%d" % (c.split("/")[-1], *TOPICS[c])
-                                                      for c in cols) + "); host_ms: the host-speed "
+    minimum_optimum = ", ".join("%s %d/%d" % (c.split("/")[-1], *TOPICS[c]) for c in cols)
+    print("rates (Hz; Table I min/opt: " + minimum_optimum + "); host_ms: the host-speed "
           "workload's median CPU ms while they were counted")
     print(head + "%9s" % "host_ms")
     for r in results:
-        print("%-7s %-7s" % (qname(r["robot_q"]), "-" if r["laptop_q"] is None else qname(r["laptop_q"]))
+        print(quota_cells(r)
               + "".join("%9.2f" % r["rates"].get(c, float("nan")) for c in cols)
               + "%9.1f" % host_ms(r))
     print("CPU (% of one core; group = sum of its nodes; throttled = % of CFS periods)")
@@ -79,7 +86,7 @@ def print_table(title, results, nodes, laptop):
         for key in ("robot", "laptop"):
             t = [v for k, v in r["throttle"].items() if k.endswith(key)]
             th.append("%d" % (100.0 * t[0][1] / t[0][0]) if t and t[0][0] else "-")
-        print("%-7s %-7s" % (qname(r["robot_q"]), "-" if r["laptop_q"] is None else qname(r["laptop_q"]))
+        print(quota_cells(r)
               + "".join("%9.1f" % c.get(n, float("nan")) for n in names)
               + "%9.1f%9s%9s" % (rg, "%.1f" % lg if laptop else "-", "/".join(th)))
     if not laptop:
@@ -88,5 +95,5 @@ def print_table(title, results, nodes, laptop):
             c = r["cpu"]
             rg = sum(v for n, v in c.items() if n in ROBOT_NODES and v == v) or float("nan")
             print("  robot %-5s  amcl %4.0f %%  ar %4.0f %%  navigation %4.0f %%"
-                  % (qname(r["robot_q"]), 100 * c.get("amcl", 0) / rg, 100 * c.get("ar_recognition", 0) / rg,
-                     100 * c.get("navigation", 0) / rg))
+                  % (qname(r["robot_q"]), 100 * c.get("amcl", 0) / rg,
+                     100 * c.get("ar_recognition", 0) / rg, 100 * c.get("navigation", 0) / rg))

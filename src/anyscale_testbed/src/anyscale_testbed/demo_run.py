@@ -18,19 +18,26 @@ import contextlib
 import datetime
 import json
 import os
+import shutil
 import signal
 import sys
 from typing import List, Optional, Tuple
 
 import yaml
 
+from anyscale_core.learned_costs import FILE_NAME as LEARNED_COSTS
+from anyscale_core.link_map import LinkMapError, load_link_map
 from anyscale_testbed.calibration_file import (calibrated_reference_ms, nav_demo_path,
                                                quota_cores)
-from anyscale_testbed.host_speed import CpuNormaliser
+from anyscale_testbed.host_speed import (REFERENCE_IDLE_MS, CpuNormaliser, host_factor,
+                                         idle_cpu_ms)
 from anyscale_testbed.quota_calibration import MAX_RUNS, CalibrationError
 from anyscale_testbed.quota_for_the_day import CALIBRATION_RUN_S, QuotaForTheDay, parse_robot_cpu
+from anyscale_testbed.slow_host import (SlowDayMode, check_factor, describe, emulated_host,
+                                        mode_world_args, slow_day_mode)
 from anyscale_testbed.testbed_figures import colour_violations
-from anyscale_testbed.testbed_record import mark_interrupted, store_cpu_normalisation
+from anyscale_testbed.testbed_record import (TestbedRecord, mark_interrupted,
+                                             store_cpu_normalisation)
 from anyscale_testbed.testbed_session import (LoopbackBed, NamespaceBed, TestbedSession,
                                               layout_with_cpu)
 from anyscale_testbed.two_scale_testbed import (CFS_PERIOD_US, WORLD_NICE, TwoScaleError,
@@ -42,6 +49,8 @@ PREFIX = "[testbed] "
 # node set takes 15-17 s to come up under its quota, and the workload measures the host as its
 # nodes load it (host_speed.HostSpeedMonitor).
 NORMALISE_SETTLE_S = 30.0
+# The decision node's link map in each run's directory: loaded at its start, saved during it.
+LINK_MAP = "link_map.yaml"
 # The end table marks a silence longer than its tolerance with the word VIOLATION; on a
 # terminal its line is red as well (the log file keeps the plain word). NO_COLOR turns it off.
 COLOUR = sys.stdout.isatty() and "NO_COLOR" not in os.environ
@@ -115,6 +124,20 @@ def parse_args(argv, default_out: str):
                         "--robot-cpu was found (bench_tolerances.py and run_evaluation.py pass "
                         "their calibration's). Default: with --robot-cpu auto, the calibration "
                         "run's own; else the calibration file's reference_cpu_ms")
+    p.add_argument("--host-factor", default="1", metavar="auto|F",
+                   help="the system tests' slow-day mode: run as on a host F times slower than "
+                        "the reference day (F >= 1; auto: this host's idle reading of "
+                        "anyscale_testbed/host_speed.py's workload over its reference, "
+                        f"{REFERENCE_IDLE_MS:g} ms): AMCL's particles and AR recognition's "
+                        "threshold windows divided by F in a copy of the calibration file, the "
+                        "quotas raised by what the unscaled nodes need more "
+                        "(anyscale_testbed/slow_host.py). Default 1: the calibration as it is")
+    p.add_argument("--emulate-slow-host", type=float, default=1.0, metavar="E",
+                   help="test bed only, an EMULATION of a host E times slower than this one: "
+                        "every CPU quota divided by E, and the world (simulator, monitor, "
+                        "master) held in a CPU group of this machine's CPUs / E "
+                        "(anyscale_testbed/slow_host.py). CFS hands quotas out in bursts, a "
+                        "slow CPU does not. Default 1: none")
     p.add_argument("--cfs-period-ms", type=float, default=CFS_PERIOD_US / 1000, metavar="MS",
                    help="the CPU quotas' CFS period, 1-1000 ms (default: the kernel's 100). A "
                         "group that used its quota waits for the next period; 10 ms was "
@@ -136,10 +159,29 @@ def parse_args(argv, default_out: str):
     p.add_argument("--amcl-hold-after-loss", type=float, default=None, metavar="S",
                    help="AMCL's own hold after a link loss (default: robot.launch's, 0: only "
                         "the bandwidth hold; 20 gives the rule of the evaluation of 2026-11-27)")
+    p.add_argument("--weak-link-mbps", type=float, default=None, metavar="MBPS",
+                   help="robot.launch's weak_link_mbps: a link measured below this carries "
+                        "nothing (default: robot.launch's, 5.5; 0: off, as the small loop's "
+                        "3-4.5 Mbit/s coverage needs for AMCL to move out at all)")
     p.add_argument("--late-boost-fraction", type=float, default=None, metavar="F",
                    help="robot.launch's late_boost_fraction: a node on the robot whose output "
                         "stays silent for F x its tolerance runs at the start boost's nice until "
                         "its next message (default: robot.launch's, 0.5; 0: none, to compare)")
+    p.add_argument("--model-costs", action="store_true",
+                   help="the decision node plans with the model's cpu_usage alone, not with the "
+                        "costs it learns while the nodes run (robot.launch's learn_costs:=false; "
+                        "to compare)")
+    p.add_argument("--no-forecast", action="store_true",
+                   help="robot.launch's link_forecast:=false: the reactive rules only, no moves "
+                        "out early nor planned returns before a hole (to compare); the link "
+                        "map is still learned. Always so with --link schedule or unshaped: "
+                        "their link follows the clock, not the robot's place")
+    p.add_argument("--link-map", default=None, metavar="FILE",
+                   help="start from the link map in FILE (an earlier run's RUN_DIR/link_map.yaml"
+                        "), copied into this run's directory (default: an empty map); the run "
+                        "saves what it learned in RUN_DIR/link_map.yaml")
+    p.add_argument("--save-link-map", default=None, metavar="FILE",
+                   help="also copy the link map the run learned to FILE at its end")
     p.add_argument("--model", default=None, help="system model (default: the nav demo's)")
     p.add_argument("--cold-start", action="store_true",
                    help="agents keep no warm standbys: every start imports anew (to compare)")
@@ -157,14 +199,16 @@ def parse_args(argv, default_out: str):
         p.error(f"--schedule: expected [[t_s, Mbit/s], ...], got {args.schedule!r}")
     if args.seed < 0:
         p.error(f"--seed: expected an integer >= 0, got {args.seed}")
+    if args.weak_link_mbps is not None and not 0 <= args.weak_link_mbps < 1000:
+        p.error(f"--weak-link-mbps: expected 0 or more Mbit/s, got {args.weak_link_mbps:g}")
     if args.late_boost_fraction is not None and not 0 <= args.late_boost_fraction <= 1:
         p.error(f"--late-boost-fraction: expected 0-1, got {args.late_boost_fraction:g}")
     args.calibrate_robot_cpu = args.robot_cpu == "auto"
     if args.reference_cpu_ms is not None and not (args.normalise_cpu
                                                   and 0 < args.reference_cpu_ms < 1000):
         p.error("--reference-cpu-ms: expected 0-1000 ms with --normalise-cpu, got "
-                f"{args.reference_cpu_ms:g}" + ("" if args.normalise_cpu
-                                                 else " without --normalise-cpu"))
+                f"{args.reference_cpu_ms:g}"
+                + ("" if args.normalise_cpu else " without --normalise-cpu"))
     if args.calibrate_robot_cpu and args.reference_cpu_ms is not None:
         p.error("--reference-cpu-ms: --robot-cpu auto measures its own")
     try:
@@ -174,9 +218,28 @@ def parse_args(argv, default_out: str):
     if not 1 <= args.loops <= 100:
         p.error(f"--loops: expected 1 to 100, got {args.loops}")
     if not 1 <= args.cfs_period_ms <= 1000:
-        p.error(f"--cfs-period-ms: expected 1 to 1000 ms (the kernel's limits), got {args.cfs_period_ms:g}")
+        p.error("--cfs-period-ms: expected 1 to 1000 ms (the kernel's limits), got "
+                f"{args.cfs_period_ms:g}")
+    try:
+        check_factor(args.emulate_slow_host, "--emulate-slow-host")
+        if args.host_factor != "auto":
+            args.host_factor = check_factor(float(args.host_factor), "--host-factor")
+    except ValueError as e:
+        p.error(str(e) if "factor" in str(e) else
+                f"--host-factor: expected auto or a factor >= 1, got {args.host_factor!r}")
+    if args.host_factor != 1 and (args.normalise_cpu or args.calibrate_robot_cpu):
+        p.error("--host-factor: not with --normalise-cpu or --robot-cpu auto (each sets the "
+                "quotas from the host's speed its own way)")
+    if args.emulate_slow_host > 1 and (args.normalise_cpu or args.calibrate_robot_cpu):
+        p.error("--emulate-slow-host: not with --normalise-cpu or --robot-cpu auto (they "
+                "measure this host, not the emulated one)")
     if args.seed and args.link != "coverage":
         p.error("--seed varies the coverage model: it needs --link coverage")
+    if args.link_map is not None:
+        try:
+            load_link_map(args.link_map)
+        except LinkMapError as e:
+            p.error(f"--link-map: {e}")
     args.record_inputs = [t.strip() for t in args.record_inputs.split(",") if t.strip()]
     bad = [t for t in args.record_inputs if not t.startswith("/") or " " in t]
     if bad:
@@ -227,8 +290,22 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
             print(PREFIX + "--normalise-cpu: the calibration timed no host speed; the quotas "
                   "stay as found")
         reference_ms = found_at_ms
-    bed = LoopbackBed() if loopback else NamespaceBed(layout_with_cpu(robot_cpu, laptop_cpu),
-                                                      cfs_period_us=int(args.cfs_period_ms * 1000))
+    mode = None
+    factor = host_factor(idle_cpu_ms()) if args.host_factor == "auto" else args.host_factor
+    if factor > 1 and not loopback:
+        mode = slow_day_mode(factor, robot_cpu, laptop_cpu, read_calibration())
+        robot_cpu, laptop_cpu = mode.robot_cores, mode.laptop_cores
+        print(PREFIX + describe(mode))
+    emulated = None
+    if args.emulate_slow_host > 1 and not loopback:
+        emulated = emulated_host(args.emulate_slow_host, robot_cpu, laptop_cpu, os.cpu_count())
+        robot_cpu, laptop_cpu = emulated.robot_cores, emulated.laptop_cores
+        print(PREFIX + f"EMULATING a host {emulated.slowdown:g} x slower than this one: the "
+              f"quotas divided by {emulated.slowdown:g}, "
+              f"the world in {emulated.world_cores:.3f} cores")
+    bed = LoopbackBed() if loopback else NamespaceBed(
+        layout_with_cpu(robot_cpu, laptop_cpu), cfs_period_us=int(args.cfs_period_ms * 1000),
+        world_cores=emulated.world_cores if emulated else 0.0)
     normaliser = None
     if not loopback:
         # Every run times its host's speed (the record's cpu_normalisation: a calibration run's
@@ -247,6 +324,10 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
              "normalised every 5 s" if following else "")
           + f"; logs and results in {run_dir}")
 
+    if args.link_map:
+        os.makedirs(run_dir, exist_ok=True)
+        shutil.copyfile(args.link_map, os.path.join(run_dir, LINK_MAP))
+        print(PREFIX + f"link map: starting from {args.link_map}")
     interrupted = False
     try:
         with bed, (normaliser or contextlib.nullcontext()):
@@ -254,10 +335,14 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
                 print(PREFIX + normaliser_state(normaliser), flush=True)
             session = TestbedSession(bed, run_dir)
             world = launch_demo(session, bed, args, model, (x, y, yaw), goals, record, run_dir,
-                                link)
+                                link, mode=mode)
             code = world.wait()
             print(PREFIX + f"run ended (world launch exit {code}); stopping both scales")
-            return 0 if code == 0 else 1
+            cut_short = ended_early(record)
+            if cut_short:
+                print(f"run_testbed: {cut_short}; see {os.path.join(run_dir, 'logs', 'world.log')}",
+                      file=sys.stderr)
+            return 0 if code == 0 and not cut_short else 1
     except KeyboardInterrupt:
         print(PREFIX + "interrupted: stopping both scales and removing the test bed")
         interrupted = True
@@ -280,6 +365,37 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
                 print(PREFIX + f"the record does not say that the run was interrupted: {e}")
         if os.path.exists(record):
             print(PREFIX + f"record: {record}")
+        keep_link_map(run_dir, args.save_link_map)
+
+
+def ended_early(record: str) -> str:
+    """Why a run that was not interrupted ended before its loops and its duration ('' if it did
+    not): roslaunch exits 0 when a required node dies, so its exit code alone cannot tell."""
+    try:
+        rec = TestbedRecord.load(record)
+    except (OSError, ValueError, TypeError, KeyError) as e:
+        return f"the run left no readable record ({record}: {e})"
+    if rec.ended_by == "shutdown":
+        return (f"the run ended after {rec.finished_t or 0.0:.1f} s, before its loops were done "
+                "and before its duration: a required node of the world (the simulator, the link "
+                "shaper) or the master ended")
+    return ""
+
+
+def keep_link_map(run_dir: str, to: Optional[str]):
+    """The map the run learned, copied to `to` (--save-link-map), whole or not at all."""
+    learned = os.path.join(run_dir, LINK_MAP)
+    if not to:
+        return
+    if not os.path.exists(learned):
+        print(PREFIX + f"--save-link-map: the run saved no link map ({learned})")
+        return
+    try:
+        shutil.copyfile(learned, to + ".tmp")
+        os.replace(to + ".tmp", to)
+        print(PREFIX + f"link map: {to}")
+    except OSError as e:
+        print(PREFIX + f"--save-link-map: cannot write {to}: {e}")
 
 
 def quota_for_this_moment(run_testbed: str, args, run_dir: str) -> Tuple[float, Optional[float]]:
@@ -299,6 +415,26 @@ def quota_for_this_moment(run_testbed: str, args, run_dir: str) -> Tuple[float, 
     return quotas.quota("robot_quota"), quotas.found_at_ms("robot_quota")
 
 
+def read_calibration() -> dict:
+    path = nav_demo_path("config", "testbed_calibration.yaml")
+    try:
+        with open(path) as f:
+            return yaml.safe_load(f) or {}
+    except (OSError, yaml.YAMLError) as e:
+        sys.exit(f"run_testbed: {path}: {e}")
+
+
+def write_calibration(run_dir: str, mode: SlowDayMode) -> str:
+    """The slow-day mode's calibration file, written into run_dir; returns its path."""
+    path = os.path.join(run_dir, "calibration_host_factor.yaml")
+    os.makedirs(run_dir, exist_ok=True)
+    with open(path, "w") as f:
+        f.write(f"# testbed_calibration.yaml for a host {mode.factor:.2f} x slower than the "
+                "reference day (run_testbed.py --host-factor)\n")
+        yaml.safe_dump(mode.calibration, f, sort_keys=False)
+    return path
+
+
 def normaliser_state(normaliser: CpuNormaliser) -> str:
     quotas = ", ".join(f"{scale} {cores:.3f}" for scale, cores in normaliser.cores.items())
     return (f"host speed: CPU quota {quotas or 'none'} cores, as calibrated, until the nodes "
@@ -307,8 +443,8 @@ def normaliser_state(normaliser: CpuNormaliser) -> str:
 
 
 def robot_launch_args(args) -> List[str]:
-    """robot.launch's holds after a link loss and late boost that the run's options set (none:
-    its own)."""
+    """robot.launch's holds after a link loss, late boost, weak link, link forecast and learning
+    that the run's options set (none: its own)."""
     out = []
     if args.late_boost_fraction is not None:
         out.append(f"late_boost_fraction:={args.late_boost_fraction:g}")
@@ -316,20 +452,29 @@ def robot_launch_args(args) -> List[str]:
         out.append(f"hold_after_loss_s:={args.hold_after_loss}")
     if args.amcl_hold_after_loss is not None:
         out.append(f"node_hold_after_loss_s:={{amcl: {args.amcl_hold_after_loss}}}")
+    if args.model_costs:
+        out.append("learn_costs:=false")
+    if getattr(args, "weak_link_mbps", None) is not None:
+        out.append(f"weak_link_mbps:={args.weak_link_mbps:g}")
+    # The link map assumes that the link follows the robot's place, as coverage does; a
+    # scheduled link follows the clock, and what a map learned of it would mislead.
+    if getattr(args, "no_forecast", False) or getattr(args, "link", "coverage") != "coverage":
+        out.append("link_forecast:=false")
     return out
 
 
 def launch_demo(session: TestbedSession, bed, args, model: str, start, goals, record: str,
                 run_dir: str, link: str, master_running: bool = False, respawn: bool = False,
-                echo=None, record_critical: bool = False):
+                echo=None, record_critical: bool = False, mode: Optional[SlowDayMode] = None):
     """The demo's three launches on the bed: the world on the robot's side outside its CPU
     quota (it brings up the master unless `master_running`), robot.launch and laptop.launch.
     `args` are parse_args' (world, schedule, seed, duration, rviz, allocator, hysteresis,
     hold_after_loss, amcl_hold_after_loss, cold_start); `respawn`: roslaunch starts the agents
     and the decision node again when they end (the fault soak); `echo` gets each line of the
     world launch (default: the monitor's lines and errors to the console); `record_critical`:
-    the monitor records the critical connections' topics too. Returns the world launch's
-    process: the run ends with it."""
+    the monitor records the critical connections' topics too; `mode`: the slow-day mode's
+    world and calibration (written into run_dir). Returns the world launch's process: the run
+    ends with it."""
     x, y, yaw = start
     warm = str(not args.cold_start).lower()
     world = session.roslaunch(
@@ -341,7 +486,8 @@ def launch_demo(session: TestbedSession, bed, args, model: str, start, goals, re
             f"record_path:={record}", f"results_dir:={os.path.join(run_dir, 'nav')}",
             f"duration_s:={args.duration}", f"rviz:={str(args.rviz).lower()}",
             f"record_critical:={str(record_critical).lower()}",
-            f"record_inputs:={json.dumps(args.record_inputs)}"],
+            f"record_inputs:={json.dumps(args.record_inputs)}"]
+        + [f"{k}:={v}" for k, v in (mode_world_args(mode) if mode else {}).items()],
         cpu_quota=False, wait_for_master=master_running, echo=echo or echo_monitor_lines,
         nice=WORLD_NICE)
     # The world launch runs the simulator and the recorder outside the robot's quota.
@@ -350,8 +496,11 @@ def launch_demo(session: TestbedSession, bed, args, model: str, start, goals, re
         f"world:={args.world}", f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}",
         f"allocator:={args.allocator}", f"hysteresis_s:={args.hysteresis}",
         f"uplink_interface:={bed.uplink_interface('robot')}", f"warm_start:={warm}",
-        f"respawn:={str(respawn).lower()}"]
-        + ([f"goals:={json.dumps(goals)}"] if goals else []) + robot_launch_args(args))
+        f"respawn:={str(respawn).lower()}", f"link_map_file:={os.path.join(run_dir, LINK_MAP)}",
+        f"learned_costs_out:={os.path.join(run_dir, LEARNED_COSTS)}"]
+        + ([f"goals:={json.dumps(goals)}"] if goals else [])
+        + ([f"calibration:={write_calibration(run_dir, mode)}"] if mode else [])
+        + robot_launch_args(args))
     session.roslaunch("laptop", "laptop", [
         "anyscale_nav_demo", "laptop.launch", f"model:={model}", f"warm_start:={warm}",
         f"respawn:={str(respawn).lower()}"])
@@ -365,4 +514,3 @@ def raise_interrupt(*_):
 def echo_monitor_lines(line: str):
     if line.startswith(PREFIX) or "[ERROR]" in line or "[FATAL]" in line:
         print(colour_violations(line, COLOUR), flush=True)
-

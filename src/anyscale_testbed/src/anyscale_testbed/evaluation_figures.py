@@ -26,7 +26,7 @@ evaluation_shortfall.py splits what a test left of it by cause.
 """
 from dataclasses import dataclass, field
 import math
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -36,44 +36,26 @@ from anyscale_nav_demo.results import (AMCL_ON_LAPTOP, AR_ON_LAPTOP,  # noqa: F4
                                        mean_abs_angular_velocity_deg)
 
 from .evaluation_shortfall import NO_SHORTFALL, Shortfall, shortfall
+from .path_steps import Window, path_steps, path_window, truth_in_window
 from .premise_figures import figures_with_every_node_home
 from .testbed_figures import pose_errors
-from .testbed_record import TestbedRecord, mapping_at
+from .testbed_record import MOVE_OUT, TestbedRecord, kind_of_move, mapping_at
 from .tolerance_report import RunRow, path_time, run_row
 
-# The safe-speed rule (anyscale_nav_demo/safe_speed.py: 0.1 m between corrections): AMCL at
-# its optimal 5 Hz on the laptop allows 0.5 m/s, capped at the robot's 0.4 m/s; at its
-# minimum 2 Hz on the robot, 0.2 m/s (the paper's two speeds).
-FAST_MPS = 0.4
-SLOW_MPS = 0.2
-# A step slower than this is a stop or a turn on the spot, not driving; a case driven less
-# than MIN_DRIVEN_M has no speed of its own worth measuring.
-MIN_DRIVING_MPS = 0.05
-MIN_DRIVEN_M = 5.0
-AMCL_OUT = (AMCL_ON_LAPTOP, BOTH_ON_LAPTOP)
 
-
-def path_window(rec: TestbedRecord) -> Tuple[float, float]:
-    """(start, end) of the mission: navigation's first status to its "done", or to the record's
-    last truth sample when the loop was not completed (or no status came)."""
-    end = rec.truth[-1][0] if rec.truth else (rec.finished_t or 0.0)
-    if not rec.navigation_status:
-        return (rec.truth[0][0] if rec.truth else 0.0), end
-    start = rec.navigation_status[0][0]
-    duration = path_time(rec)
-    return start, (start + duration if math.isfinite(duration) else end)
-
-
-def truth_in_window(rec: TestbedRecord) -> np.ndarray:
-    """(N, 3) t, x, y of the ground truth within the mission."""
-    start, end = path_window(rec)
-    truth = np.asarray(rec.truth, dtype=float).reshape(-1, 3)
-    return truth[(truth[:, 0] >= start) & (truth[:, 0] <= end)]
-
-
-def configurations_along_path(rec: TestbedRecord, master: str = "robot") -> List[str]:
-    """The configuration at each truth sample of the mission (truth_in_window's rows)."""
-    return [configuration_of(mapping_at(rec, t), master) for t in truth_in_window(rec)[:, 0]]
+def returns_along_path(rec: TestbedRecord) -> List[Tuple[float, float, str]]:
+    """(x, y, kind) where the robot was (ground truth) when each return of the mission was
+    decided (testbed_record.kind_of_move): Fig. 5 marks them."""
+    truth = truth_in_window(rec)
+    if len(truth) < 2:
+        return []
+    found = []
+    for e in rec.events:
+        kind = kind_of_move(e)
+        if kind and kind != MOVE_OUT and truth[0, 0] <= e.decided_t <= truth[-1, 0]:
+            found.append((float(np.interp(e.decided_t, truth[:, 0], truth[:, 1])),
+                          float(np.interp(e.decided_t, truth[:, 0], truth[:, 2])), kind))
+    return found
 
 
 def configuration_shares(rec: TestbedRecord, master: str = "robot") -> Dict[str, float]:
@@ -89,17 +71,6 @@ def configuration_shares(rec: TestbedRecord, master: str = "robot") -> Dict[str,
     return shares
 
 
-def bandwidth_at_times(bandwidth: Sequence[Tuple[float, float]],
-                       times: np.ndarray) -> np.ndarray:
-    """The recorded bandwidth in force at each time (the last sample at or before it; before
-    the first sample, the first one)."""
-    if not bandwidth:
-        return np.zeros(len(times))
-    t, mbps = (np.asarray(c, dtype=float) for c in zip(*bandwidth))
-    index = np.clip(np.searchsorted(t, times, side="right") - 1, 0, len(t) - 1)
-    return mbps[index]
-
-
 @dataclass(frozen=True)
 class CoverageBound:
     path_m: float               # the mission's length along the ground truth
@@ -112,65 +83,24 @@ class CoverageBound:
 NO_BOUND = CoverageBound(math.nan, math.nan, math.nan, math.nan, math.nan)
 
 
-def driving_speed(steps: np.ndarray, dt: np.ndarray, where: np.ndarray, default: float) -> float:
-    """Mean speed over the steps `where` (distance / time); `default` below MIN_DRIVEN_M."""
-    length = float(steps[where].sum())
-    return length / float(dt[where].sum()) if length >= MIN_DRIVEN_M else default
-
-
-@dataclass(frozen=True)
-class PathSteps:
-    """The mission's ground truth as steps between samples, with what held at each start."""
-    t: np.ndarray               # start of each step
-    dt: np.ndarray
-    length: np.ndarray
-    mbps: np.ndarray            # the modelled link's bandwidth
-    carried: np.ndarray         # the link carried AMCL's traffic
-    out: np.ndarray             # AMCL ran off the robot
-    driving: np.ndarray         # faster than MIN_DRIVING_MPS
-    home_mps: float
-    out_mps: float
-
-    def saved_by_moving_out(self) -> np.ndarray:
-        """Per step, the seconds the bound saves there: a driving step with AMCL home where the
-        link carried it, at the speed with AMCL out."""
-        saved = np.zeros(len(self.dt))
-        home_but_carried = self.driving & self.carried & ~self.out
-        saved[home_but_carried] = self.dt[home_but_carried] - \
-            self.length[home_but_carried] / self.out_mps
-        return saved
-
-
-def path_steps(rec: TestbedRecord, amcl_mbps: float, master: str = "robot") -> Optional[PathSteps]:
-    """None where the record has no path or no bandwidth."""
-    truth = truth_in_window(rec)
-    if len(truth) < 2 or not rec.bandwidth:
-        return None
-    dt = np.diff(truth[:, 0])
-    length = np.hypot(np.diff(truth[:, 1]), np.diff(truth[:, 2]))
-    mbps = bandwidth_at_times(rec.bandwidth, truth[:-1, 0])
-    out = np.array([c in AMCL_OUT for c in configurations_along_path(rec, master)[:-1]])
-    driving = length > MIN_DRIVING_MPS * dt
-    return PathSteps(truth[:-1, 0], dt, length, mbps, mbps >= amcl_mbps, out, driving,
-                     driving_speed(length, dt, driving & ~out, SLOW_MPS),
-                     driving_speed(length, dt, driving & out, FAST_MPS))
-
-
-def coverage_bound(rec: TestbedRecord, amcl_mbps: float, master: str = "robot") -> CoverageBound:
+def coverage_bound(rec: TestbedRecord, amcl_mbps: float, master: str = "robot",
+                   window: Window = None) -> CoverageBound:
     """See the module docstring. NaN figures where the record has no path or no bandwidth, and
-    no time where the loop was not completed."""
-    steps = path_steps(rec, amcl_mbps, master)
+    no time where the loop was not completed. `window`: (start, end) of a part of the mission
+    (a lap) in place of the whole; its time is end - start."""
+    steps = path_steps(rec, amcl_mbps, master, window)
     if steps is None:
         return NO_BOUND
+    taken = path_time(rec) if window is None else window[1] - window[0]
     total = float(steps.length.sum())
     if not total > 0:
-        return CoverageBound(0.0, math.nan, math.nan, math.nan, path_time(rec))
+        return CoverageBound(0.0, math.nan, math.nan, math.nan, taken)
     out_but_not_carried = steps.driving & ~steps.carried & steps.out
     lost = float(np.sum(steps.length[out_but_not_carried] / steps.home_mps
                         - steps.dt[out_but_not_carried]))
     return CoverageBound(total, float(steps.length[steps.carried].sum() / total),
                          steps.home_mps, steps.out_mps,
-                         path_time(rec) - float(steps.saved_by_moving_out().sum()) + lost)
+                         taken - float(steps.saved_by_moving_out().sum()) + lost)
 
 
 def mean_abs_omega_deg_s(rec: TestbedRecord) -> float:
@@ -217,6 +147,8 @@ class RunFigures:
     shortfall: Shortfall = NO_SHORTFALL     # what an AnyScale test left of the bound
     amcl_hz_home: float = math.nan          # with every node on the robot (the premise)
     cruise_mps_home: float = math.nan
+    # evaluation_laps.LapFigures per lap of a run that drove its loop more than once
+    laps: list = field(default_factory=list)
 
 
 def run_figures(name: str, kind: str, seed: int, exit_code: int,

@@ -11,6 +11,13 @@ from anyscale_nav_demo.results import (CONFIGURATION_COLOURS, CONFIGURATIONS,
                                        configuration_runs)
 
 from .link_shaper import FULL_SCALE_MBPS, CoverageGrid
+from .testbed_record import LINK_AHEAD_RETURN, LINK_LOSS_RETURN, OTHER_RETURN
+
+# How Fig. 5 marks the returns where they were decided: after a link loss, planned before a
+# hole the link map foresaw, other planned ones.
+RETURN_MARKERS = {LINK_LOSS_RETURN: dict(marker="X", color="black", s=70),
+                  LINK_AHEAD_RETURN: dict(marker="^", color="#f0a30a", edgecolors="black", s=60),
+                  OTHER_RETURN: dict(marker="o", color="white", edgecolors="black", s=30)}
 
 
 def _pyplot():
@@ -29,7 +36,8 @@ def draw_fig5(png_path: str, occupied: np.ndarray, unknown: np.ndarray, resoluti
               origin_xy: Tuple[float, float],
               tests: Sequence[Tuple[str, np.ndarray, Sequence[str]]],
               coverage: Optional[CoverageGrid] = None):
-    """One panel per test: (title, (N, 2) path, configuration per point)."""
+    """One panel per test: (title, (N, 2) path, configuration per point[, returns]), returns
+    (x, y, kind) marked where each was decided (RETURN_MARKERS)."""
     plt = _pyplot()
     from matplotlib.lines import Line2D
     panels = max(1, len(tests))
@@ -44,7 +52,8 @@ def draw_fig5(png_path: str, occupied: np.ndarray, unknown: np.ndarray, resoluti
         if k >= len(tests):
             ax.axis("off")
             continue
-        title, xy, configurations = tests[k]
+        title, xy, configurations = tests[k][:3]
+        returns = tests[k][3] if len(tests[k]) > 3 else ()
         ax.imshow(map_image(occupied, unknown), cmap="gray", origin="lower", vmin=0, vmax=1,
                   extent=extent)
         if coverage is not None:
@@ -53,16 +62,27 @@ def draw_fig5(png_path: str, occupied: np.ndarray, unknown: np.ndarray, resoluti
             shown = np.ma.masked_where(coverage.mbps <= 0, coverage.mbps)
             # Purple, apart from the configurations' colours; the lowest rate still shows.
             ax.imshow(shown, cmap="Purples", origin="lower", vmin=-0.3 * FULL_SCALE_MBPS,
-                      vmax=FULL_SCALE_MBPS, alpha=0.5, extent=(cx, cx + cw * coverage.resolution,
-                                          cy, cy + ch * coverage.resolution))
+                      vmax=FULL_SCALE_MBPS, alpha=0.5,
+                      extent=(cx, cx + cw * coverage.resolution,
+                              cy, cy + ch * coverage.resolution))
         for configuration, points in configuration_runs(xy, configurations):
             ax.plot(points[:, 0], points[:, 1], "-", lw=2.5,
                     color=CONFIGURATION_COLOURS[configuration])
+        for kind, style in RETURN_MARKERS.items():
+            at = [(x, y) for x, y, k in returns if k == kind]
+            if at:
+                ax.scatter(*zip(*at), zorder=5, linewidths=0.8, **style)
         ax.set_title(title)
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
     handles = [Line2D([], [], color=CONFIGURATION_COLOURS[c], lw=3, label=c)
                for c in CONFIGURATIONS]
+    shown = {k for t in tests if len(t) > 3 for _, _, k in t[3]}
+    for kind, style in RETURN_MARKERS.items():
+        if kind in shown:
+            handles.append(Line2D([], [], ls="", marker=style["marker"],
+                                  markerfacecolor=style["color"], markeredgecolor="black",
+                                  markersize=8, label=kind))
     if coverage is not None:
         handles.append(Line2D([], [], color="#8c6bb1", lw=8, alpha=0.6,
                               label="WiFi coverage (model; darker = faster)"))

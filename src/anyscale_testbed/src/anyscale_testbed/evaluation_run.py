@@ -28,6 +28,7 @@ the machine should be left to them. Root; run with the workspace sourced:
 """
 import argparse
 from dataclasses import dataclass
+import glob
 import math
 import os
 import re
@@ -38,16 +39,18 @@ from typing import Iterable, List, Optional, Sequence, Tuple
 import yaml
 
 from anyscale_core.characterisation import characterise
+from anyscale_core.link_map import LinkMapError, load_link_map
 from anyscale_core.model import ModelError
 from anyscale_core.model_loader import load_model
 from anyscale_nav_demo.occupancy_map import MapError, load_map
 
 from .bench_runs import latest_record, run_logged, start_on_the_testbed
 from .calibration_file import nav_demo_path
-from .evaluation_figures import (RunFigures, configurations_along_path, run_figures,
-                                 truth_in_window)
+from .evaluation_figures import RunFigures, returns_along_path, run_figures
+from .evaluation_laps import lap_figures, write_lap_report
 from .evaluation_plots import draw_fig5, draw_fig6
 from .evaluation_table import format_markdown, format_table, write_csv
+from .path_steps import configurations_along_path, truth_in_window
 from .link_shaper import coverage_grid, coverage_model_from_grid
 from .premise_figures import premise_off_note
 from .quota_calibration import CalibrationError
@@ -237,8 +240,26 @@ def parse_args(argv, default_out: str):
                         "with every node home find the quota at which AMCL runs at the "
                         "premise's 2 Hz today (quota_calibration.py; about 2 minutes per run, "
                         "1-3 runs), kept in DIR/<pair>-calibration/calibration.json")
+    p.add_argument("--laps", type=int, default=1, metavar="N",
+                   help="each run drives its loop N times (run_testbed.py --loops): the link "
+                        "map the decision node learns on lap 1 serves lap 2; the table then "
+                        "also has each lap apart (default 1)")
+    p.add_argument("--no-forecast", action="store_true",
+                   help="the AnyScale tests with run_testbed.py --no-forecast: the reactive "
+                        "rules only, to compare")
+    p.add_argument("--link-map", default=None, metavar="FILE|DIR",
+                   help="each AnyScale test starts from this link map: a file, or an earlier "
+                        "evaluation's --out, where each test starts from the map its namesake "
+                        "saved (DIR/KEY/*/link_map.yaml); default: an empty map")
     p.add_argument("--out", default=default_out, help=f"results directory ({default_out})")
     args = p.parse_args(argv)
+    if not 1 <= args.laps <= 20:
+        p.error(f"--laps: expected 1 to 20, got {args.laps}")
+    if args.link_map is not None and not os.path.isdir(args.link_map):
+        try:
+            load_link_map(args.link_map)
+        except LinkMapError as e:
+            p.error(f"--link-map: {e}")
     try:
         args.robot_cpu = parse_robot_cpu(args.robot_cpu)
     except ValueError as e:
@@ -282,7 +303,28 @@ def run_argv(run: PlannedRun, args, run_testbed: str, run_dir: str,
     quota = ["--robot-cpu", f"{robot_cpu:g}"] if robot_cpu is not None else []
     return ([sys.executable, run_testbed, "--world", args.world, "--duration", str(args.duration),
              "--out", run_dir] + quota + normalise_cpu_argv(args.normalise_cpu, found_at_ms)
-            + run.argv)
+            + (["--loops", str(args.laps)] if args.laps > 1 else [])
+            + link_map_argv(run, args) + run.argv)
+
+
+def link_map_argv(run: PlannedRun, args) -> List[str]:
+    """An AnyScale test's link forecast options: --no-forecast, and the map it starts from
+    (--link-map: a file, or the one its namesake saved in an earlier evaluation's directory;
+    none there: an empty map, said so)."""
+    if run.kind not in ALLOCATORS:
+        return []
+    out = ["--no-forecast"] if args.no_forecast else []
+    if args.link_map is None:
+        return out
+    path = args.link_map
+    if os.path.isdir(path):
+        saved = sorted(glob.glob(os.path.join(path, run.key, "*", "link_map.yaml")))
+        if not saved:
+            print(f"evaluation: {run.key}: no link map in {path}/{run.key}/; starting from an "
+                  "empty one", flush=True)
+            return out
+        path = saved[-1]
+    return out + ["--link-map", path]
 
 
 def run_one(run: PlannedRun, args, run_testbed: str, run_dir: str,
@@ -298,16 +340,24 @@ def calibration_key(run: PlannedRun) -> str:
     return f"pair{run.pair}-calibration" if run.pair else "calibration"
 
 
-def collect(runs: Sequence[PlannedRun], out: str, amcl_mbps: float) -> List[RunFigures]:
+def collect(runs: Sequence[PlannedRun], out: str, amcl_mbps: float,
+            laps: int = 1) -> List[RunFigures]:
     """The figures of every one of `runs` recorded in `out`, in their order."""
     figures = []
     for run in runs:
         run_dir = os.path.join(out, run.key)
         rec = latest_record(run_dir)
         if rec is not None:
-            figures.append(run_figures(run.title, run.kind, run.seed,
-                                       recorded_exit_code(run_dir), rec, amcl_mbps,
-                                       pair=run.pair))
+            figures.append(figures_of(run, recorded_exit_code(run_dir), rec, amcl_mbps, laps))
+    return figures
+
+
+def figures_of(run: PlannedRun, code: int, rec: TestbedRecord, amcl_mbps: float,
+               laps: int = 1) -> RunFigures:
+    """A recorded run's figures, lap by lap too when it drove more than one."""
+    figures = run_figures(run.title, run.kind, run.seed, code, rec, amcl_mbps, pair=run.pair)
+    if laps > 1:
+        figures.laps = lap_figures(rec, laps, amcl_mbps)
     return figures
 
 
@@ -331,7 +381,7 @@ def draw_figures(out: str, world: str, plan: Sequence[PlannedRun], figures: List
         rec: Optional[TestbedRecord] = latest_record(os.path.join(out, run.key))
         if rec is not None and len(rec.truth) > 1:
             panels.append((run.title, truth_in_window(rec)[:, 1:3],
-                           configurations_along_path(rec)))
+                           configurations_along_path(rec), returns_along_path(rec)))
     draw_fig5(os.path.join(out, "fig5_paths.png"), occ.occupied, occ.data < 0, occ.resolution,
               occ.origin[:2], panels, coverage)
     draw_fig6(os.path.join(out, "fig6_time_and_omega.png"),
@@ -380,8 +430,7 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
             began = time.monotonic()
             code = run_one(run, args, run_testbed, run_dir, robot_cpu, found_at_ms)
             rec = latest_record(run_dir)
-            done = (run_figures(run.title, run.kind, run.seed, code, rec, amcl_mbps)
-                    if rec else None)
+            done = figures_of(run, code, rec, amcl_mbps) if rec else None
             summary = progress_summary(done) if done else "no record"
             print(f"[{k}/{len(todo)}] {run.key}: done in {time.monotonic() - began:.0f} s, "
                   f"exit {code}: {summary}", flush=True)
@@ -390,7 +439,7 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
     except KeyboardInterrupt:
         print("evaluation: interrupted; the table has the runs recorded so far", flush=True)
     loaded = runs_to_collect(args.plan, recorded_keys(out))
-    figures = collect(loaded, out, amcl_mbps)
+    figures = collect(loaded, out, amcl_mbps, args.laps)
     if not figures:
         print("evaluation: no run recorded, no table", flush=True)
         return 1
@@ -410,6 +459,8 @@ def write_outputs(out: str, world: str, plan: Sequence[PlannedRun], figures: Lis
         f.write(format_markdown(figures, f"The paper's evaluation on the test bed ({world})"))
         f.write(calibrations)
     write_csv(os.path.join(out, "evaluation.csv"), figures)
+    for line in write_lap_report(out, figures):
+        print(line, flush=True)
     try:
         draw_figures(out, world, plan, figures)
     except (OSError, MapError, KeyError, yaml.YAMLError) as e:

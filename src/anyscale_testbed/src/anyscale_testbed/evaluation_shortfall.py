@@ -15,18 +15,16 @@ Apart from these, the moves out themselves cost time the bound does not remove e
 decision until the new instance publishes and the robot speeds up, the steps mapped out were
 driven at the robot's speed; their seconds against the speed with AMCL out are `moving`.
 The thresholds are robot.launch's defaults, which the evaluation runs with. `steps` are
-evaluation_figures.PathSteps."""
+path_steps.PathSteps."""
 from dataclasses import dataclass, field
 import math
-from typing import TYPE_CHECKING, Dict, List, Optional
+from typing import Dict, List, Optional
 
 import numpy as np
 
+from .path_steps import PathSteps
 from .testbed_figures import link_transitions, move_window
 from .testbed_record import TestbedRecord
-
-if TYPE_CHECKING:       # evaluation_figures imports this module for its RunFigures
-    from .evaluation_figures import PathSteps
 
 WEAK, HOLD, HYSTERESIS, START, OTHER = ("weak link", "hold after a loss", "hysteresis T",
                                         "before the first move out", "other")
@@ -73,7 +71,7 @@ def _since_last(moments: List[float], t: float) -> float:
     return t - before[-1] if before else math.inf
 
 
-def step_causes(rec: TestbedRecord, steps: "PathSteps", params: PolicyParams,
+def step_causes(rec: TestbedRecord, steps: PathSteps, params: PolicyParams,
                 node: str = "amcl") -> List[str]:
     """The cause of each step (CAUSES), for every step; meaningful where AMCL stayed home on a
     carried stretch."""
@@ -96,7 +94,7 @@ def step_causes(rec: TestbedRecord, steps: "PathSteps", params: PolicyParams,
     return causes
 
 
-def shortfall(rec: TestbedRecord, steps: "PathSteps", params: Optional[PolicyParams] = None,
+def shortfall(rec: TestbedRecord, steps: PathSteps, params: Optional[PolicyParams] = None,
               node: str = "amcl") -> Shortfall:
     """params: the record's (PolicyParams.of_record) unless given."""
     params = params or PolicyParams.of_record(rec, node)

@@ -12,6 +12,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
+from anyscale_core.param_spec import REQUIRED, Param, ParamError
 from anyscale_nav_demo.occupancy_map import MapError, load_map
 from anyscale_testbed.two_scale_testbed import (TwoScaleLayout, link_commands, run,
                                                 shape_commands)
@@ -220,8 +221,8 @@ def path_points(corners: Sequence[Tuple[float, float]], step_m: float = 0.1) -> 
     return np.asarray(points, dtype=float).reshape(-1, 2)
 
 
-def leg_clear_on(model: CoverageModel) -> Callable[[Tuple[float, float], Tuple[float, float]],
-                                                    bool]:
+def leg_clear_on(
+        model: CoverageModel) -> Callable[[Tuple[float, float], Tuple[float, float]], bool]:
     """A `leg_is_clear` for loop_corners: no occupied cell of the model's map on the leg."""
     return lambda a, b: walls_crossed(model.occupied, model.resolution, model.origin_xy,
                                       a, b) == 0
@@ -255,60 +256,57 @@ class ShaperParams:
     map_file: str = ""  # coverage mode: the floor plan's map YAML; "" = from /map
 
 
+SHAPER_PARAMS = (
+    Param("mode", "coverage", "coverage: bandwidth from the robot's pose; schedule: scripted",
+          kind="choice", choices=MODES),
+    Param("access_point_x", REQUIRED, "access point in the map frame (coverage mode)", "m",
+          kind="float"),
+    Param("access_point_y", REQUIRED, "access point in the map frame (coverage mode)", "m",
+          kind="float"),
+    Param("schedule", REQUIRED, "[[t_s, mbps], ...] (schedule mode)", kind="raw"),
+    Param("rate_hz", 5.0, "how often the link is set", "Hz", minimum=0.0, above=True),
+    Param("burst_kbit", 32, "tbf burst", "kbit", minimum=1),
+    Param("dry_run", False, "log the tc commands instead of running them"),
+    Param("seed", 0, "coverage mode: 0 = the deterministic model, else wifi_variation's",
+          minimum=0),
+    Param("robot_namespace", TwoScaleLayout().robot.namespace, "the robot's netns", kind="name"),
+    Param("robot_interface", TwoScaleLayout().robot.interface, "its veth end", kind="name"),
+    Param("laptop_namespace", TwoScaleLayout().laptop.namespace, "the laptop's netns",
+          kind="name"),
+    Param("laptop_interface", TwoScaleLayout().laptop.interface, "its veth end", kind="name"),
+    Param("map_file", "", "coverage mode: the floor plan's map YAML; empty: from /map",
+          kind="raw"),
+)
+_SHAPER = {p.name: p for p in SHAPER_PARAMS}
+
+
 def read_shaper_params(get: Callable[[str, object], object]) -> ShaperParams:
-    """The node's parameters through `get(name, default)` (rospy.get_param); ValueError names
-    the bad parameter. The access point is needed in coverage mode, the schedule in schedule
-    mode; there is no sensible default for either."""
-    def number(name, default, minimum=None, exclusive=False):
-        value = get(name, default)
-        if value is None:
-            raise ValueError(f"{name}: required in {mode} mode")
-        if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                or not math.isfinite(value):
-            raise ValueError(f"{name}: expected a number, got {value!r}")
-        if minimum is not None and (value <= minimum if exclusive else value < minimum):
-            raise ValueError(f"{name}: expected a number {'>' if exclusive else '>='} "
-                             f"{minimum:g}, got {value!r}")
-        return float(value)
+    """The node's parameters through `get(name, default)` (rospy.get_param); ValueError
+    (ParamError) names the bad parameter. The access point is needed in coverage mode, the
+    schedule in schedule mode; there is no sensible default for either."""
+    def read(name):
+        return _SHAPER[name].read(get)
 
-    def name_param(name, default):
-        value = get(name, default)
-        if not isinstance(value, str) or not value or any(c.isspace() for c in value):
-            raise ValueError(f"{name}: expected a name without spaces, got {value!r}")
-        return value
-
-    mode = get("~mode", "coverage")
-    if mode not in MODES:
-        raise ValueError(f"~mode: expected one of {', '.join(MODES)}, got {mode!r}")
+    mode = read("mode")
     access_point = schedule = None
     if mode == "coverage":
-        access_point = (number("~access_point_x", None), number("~access_point_y", None))
+        access_point = (read("access_point_x"), read("access_point_y"))
     else:
         schedule = parse_schedule(get("~schedule", None), "~schedule")
-    burst = get("~burst_kbit", 32)
-    if isinstance(burst, bool) or not isinstance(burst, int) or burst < 1:
-        raise ValueError(f"~burst_kbit: expected an integer >= 1, got {burst!r}")
-    dry_run = get("~dry_run", False)
-    if not isinstance(dry_run, bool):
-        raise ValueError(f"~dry_run: expected true or false, got {dry_run!r}")
-    seed = get("~seed", 0)
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ValueError(f"~seed: expected an integer >= 0, got {seed!r}")
+    seed = read("seed")
     if seed and mode != "coverage":
-        raise ValueError(f"~seed: varies the coverage model; it has no meaning in {mode} mode")
+        raise ParamError(f"~seed: varies the coverage model; it has no meaning in {mode} mode")
     default = TwoScaleLayout()
     layout = TwoScaleLayout(
-        robot=replace(default.robot, namespace=name_param("~robot_namespace",
-                                                          default.robot.namespace),
-                      interface=name_param("~robot_interface", default.robot.interface)),
-        laptop=replace(default.laptop, namespace=name_param("~laptop_namespace",
-                                                            default.laptop.namespace),
-                       interface=name_param("~laptop_interface", default.laptop.interface)))
-    map_file = get("~map_file", "")
+        robot=replace(default.robot, namespace=read("robot_namespace"),
+                      interface=read("robot_interface")),
+        laptop=replace(default.laptop, namespace=read("laptop_namespace"),
+                       interface=read("laptop_interface")))
+    map_file = read("map_file")
     if not isinstance(map_file, str):
-        raise ValueError(f"~map_file: expected the path of a map YAML, got {map_file!r}")
+        raise ParamError(f"~map_file: expected the path of a map YAML, got {map_file!r}")
     if map_file and mode != "coverage":
-        raise ValueError(f"~map_file: the coverage model's floor plan; it has no meaning in "
+        raise ParamError(f"~map_file: the coverage model's floor plan; it has no meaning in "
                          f"{mode} mode")
-    return ShaperParams(mode, access_point, schedule, number("~rate_hz", 5.0, 0.0, True),
-                        layout, burst, dry_run, seed, map_file)
+    return ShaperParams(mode, access_point, schedule, read("rate_hz"), layout,
+                        read("burst_kbit"), read("dry_run"), seed, map_file)

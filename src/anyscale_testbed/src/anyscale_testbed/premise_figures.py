@@ -13,10 +13,11 @@ SPEED_WINDOW_S = 5.0
 # The robot also turns on the spot and waits at goals, where no rule limits its speed; the
 # cruise speed is this percentile of the speed over SPEED_WINDOW_S windows.
 CRUISE_PERCENTILE = 80
-# The calibrated premise (anyscale_nav_demo/config/testbed_calibration.yaml, the README's "The
-# test bed's premise"): with every node on the robot AMCL sustains only its 2 Hz minimum. Runs
-# at the calibrated quota varied by +-0.3 Hz; one further off than PREMISE_MARGIN_HZ did not
-# run the premise (on a day this shared VM ran faster, AMCL ran at 2.9-3.1 Hz under that quota).
+# The calibrated premise (anyscale_nav_demo/config/testbed_calibration.yaml,
+# docs/measurements/premise.md): with every node on the robot AMCL sustains only its 2 Hz
+# minimum. Runs at the calibrated quota varied by +-0.3 Hz; one further off than
+# PREMISE_MARGIN_HZ did not run the premise (on a day this shared VM ran faster, AMCL ran at
+# 2.9-3.1 Hz under that quota).
 PREMISE_AMCL_HZ = 2.0
 PREMISE_MARGIN_HZ = 0.5
 # Start-up left out of a run's figures (bench_premise.py's --skip default).

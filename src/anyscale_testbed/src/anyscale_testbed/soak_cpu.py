@@ -12,8 +12,8 @@ from typing import Dict, Mapping, Sequence, Tuple
 TOP = 4
 
 
-def cpu_during(census: Sequence, start: float, end: float) -> Tuple[float, Dict[Tuple[str, str],
-                                                                                   float]]:
+def cpu_during(census: Sequence, start: float,
+               end: float) -> Tuple[float, Dict[Tuple[str, str], float]]:
     """(span, {(cgroup, name): cores}): the cores each process name used on average from the
     last census sample at or before `start` to the first at or after `end` (the span between
     them, in s). A process that started in the span counts from its start. Samples in time

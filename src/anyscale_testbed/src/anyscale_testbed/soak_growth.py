@@ -82,8 +82,8 @@ def unjudged_growth(samples: Sequence[ResourceSample]) -> List[str]:
             if _span(judged) < MIN_SPAN_S]
 
 
-def _after_warmup(samples: Sequence[ResourceSample]) -> Dict[Tuple[str, int],
-                                                              List[ResourceSample]]:
+def _after_warmup(
+        samples: Sequence[ResourceSample]) -> Dict[Tuple[str, int], List[ResourceSample]]:
     """(role, pid) -> its samples after its first WARMUP_S, in time order."""
     by_process: Dict[Tuple[str, int], List[ResourceSample]] = {}
     for s in sorted(samples, key=lambda s: s.t):

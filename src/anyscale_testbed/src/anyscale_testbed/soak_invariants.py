@@ -101,8 +101,8 @@ def judge_faults(faults: Sequence[InjectedFault], census: Sequence[CensusSample]
     for o in judged:
         o.recovery_s = recovery_s(o.injected, o.window_end, census, rec, model)
         if not math.isfinite(o.recovery_s):
-            o.violations.append(f"not recovered within {o.window_end - o.injected.t:.1f} s: "
-                                f"{unhealthy_reason(census, rec, model, o.injected.end, o.window_end)}")
+            why = unhealthy_reason(census, rec, model, o.injected.end, o.window_end)
+            o.violations.append(f"not recovered within {o.window_end - o.injected.t:.1f} s: {why}")
     for t, text in instance_violations(census, rec, model):
         _charge(judged, t, text)
     for t, text in fixed_node_violations(census, rec, model):
@@ -167,8 +167,8 @@ def unhealthy_reason(census: Sequence[CensusSample], rec: TestbedRecord, model: 
     why = healthy(last, mapping_at(rec, last.t), model)
     if why:
         return f"at t={last.t:.1f} s: {why}"
-    silent = [t for t in sorted(rec.tolerances) if not any(since < x <= last.t
-                                                             for x in rec.receipts.get(t, []))]
+    silent = [t for t in sorted(rec.tolerances)
+              if not any(since < x <= last.t for x in rec.receipts.get(t, []))]
     if silent:
         return f"no message on {', '.join(silent)} since the fault ended"
     missing = unlisted_publishers(rec, model, since, last.t)

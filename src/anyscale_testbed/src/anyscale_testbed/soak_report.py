@@ -93,7 +93,8 @@ def detail_lines(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
     for g in growths:
         state = "GREW " + "; ".join(g.grew) if g.grew else "steady"
         lines.append(f"{g.role} pid {g.pid} over {g.span_s:.0f} s: memory {g.rss_first_mb:.1f}"
-                     f" -> {g.rss_last_mb:.1f} MB, fds besides connections {g.fds_first:g} -> {g.fds_last:g}: {state}")
+                     f" -> {g.rss_last_mb:.1f} MB, fds besides connections {g.fds_first:g}"
+                     f" -> {g.fds_last:g}: {state}")
     return lines + [f"NOT CHECKED {x}" for x in unchecked]
 
 
@@ -117,8 +118,9 @@ def format_markdown(outcomes: Sequence[FaultOutcome], leaks: Sequence[str],
     for o in outcomes:
         what = o.injected.fault.describe() + (f" ({o.injected.detail})" if o.injected.detail
                                               else "")
-        lines.append(f"| {o.index} | {o.injected.t:.1f} | {o.kind} | {what} | "
-                     f"{'not injected: ' + o.injected.error if o.injected.error else _seconds(o.recovery_s)}"
+        recovery = ("not injected: " + o.injected.error if o.injected.error
+                    else _seconds(o.recovery_s))
+        lines.append(f"| {o.index} | {o.injected.t:.1f} | {o.kind} | {what} | {recovery}"
                      f" | {len(o.violations)} |")
     lines += ["", "## Findings", ""]
     lines += [f"- {x}" for x in detail_lines(outcomes, leaks, growths, unchecked, notes)] or \

@@ -29,10 +29,11 @@ from anyscale_core.model_loader import load_model
 from . import fault_schedule as fs
 from .bench_runs import interrupt_then_kill, start_on_the_testbed
 from .calibration_file import nav_demo_path, quota_cores
-from .demo_run import launch_demo, world_start
+from .demo_run import launch_demo, read_calibration, world_start
 from .demo_run import parse_args as demo_args
 from .link_shaper import apply_setting
 from .proc_census import processes_with_master
+from .slow_host import check_factor, describe, emulated_host, slow_day_mode
 from .soak_bed import Injector, Sampler, describe_state
 from .soak_growth import ResourceSample, growth, unjudged_growth
 from .soak_cpu import cpu_during, describe_cpu
@@ -75,6 +76,12 @@ def parse_args(argv):
                    help="the CPU quotas' CFS period, 1-1000 ms (default: the kernel's 100); see "
                         "run_testbed.py --help")
     p.add_argument("--hysteresis", type=float, default=10.0, help="the paper's T in s (10)")
+    p.add_argument("--host-factor", type=float, default=1.0, metavar="F",
+                   help="the system tests' slow-day mode for a host F times slower than the "
+                        "reference day (run_testbed.py --help; default 1: none)")
+    p.add_argument("--emulate-slow-host", type=float, default=1.0, metavar="E",
+                   help="test bed only: EMULATE a host E times slower than this one "
+                        "(run_testbed.py --help; default 1: none)")
     p.add_argument("--dry-run", action="store_true",
                    help="print the schedule and exit (no root needed)")
     p.add_argument("--judge", metavar="DIR", default=None,
@@ -96,15 +103,22 @@ def parse_args(argv):
         if cores is not None and not (math.isfinite(cores) and cores > 0):
             p.error(f"--{name.replace('_', '-')}: expected cores > 0, got {cores:g}")
     if not 1 <= args.cfs_period_ms <= 1000:
-        p.error(f"--cfs-period-ms: expected 1 to 1000 ms (the kernel's limits), got {args.cfs_period_ms:g}")
+        p.error("--cfs-period-ms: expected 1 to 1000 ms (the kernel's limits), got "
+                f"{args.cfs_period_ms:g}")
     if not (math.isfinite(args.hysteresis) and args.hysteresis >= 0):
         p.error(f"--hysteresis: expected seconds >= 0, got {args.hysteresis:g}")
+    for option, value in (("--host-factor", args.host_factor),
+                          ("--emulate-slow-host", args.emulate_slow_host)):
+        try:
+            check_factor(value, option)
+        except ValueError as e:
+            p.error(str(e))
     return args
 
 
 def soak_model(model) -> SoakModel:
     fixed = set(critical_node_names(model)) | {n.name for n in model.nodes
-                                                if n.pinned is not None}
+                                               if n.pinned is not None}
     return SoakModel(model.master.name, list(model.node_names), fixed,
                      {(n, s): model.instance_name(n, s) for n in model.node_names
                       for s in model.scale_names}, LEASE_S)
@@ -123,7 +137,7 @@ def leftovers(bed, master_uri: str) -> List[str]:
             left.append(f"namespace {end.namespace}")
         if run(["ip", "link", "show", end.interface], check=False).returncode == 0:
             left.append(f"veth {end.interface}")
-    for quota in bed.quotas.values():
+    for quota in bed.cpu_groups():
         if os.path.isdir(quota.path):
             left.append(f"cgroup {quota.path}")
     left += [f"process {pid} ({_cmdline(pid)})" for pid in processes_with_master(master_uri)]
@@ -169,6 +183,17 @@ def main(root: str, argv=None) -> int:
         return 0
     start_on_the_testbed("bench_fault_soak")
     robot_cpu, laptop_cpu = quota_cores(args.robot_cpu, args.laptop_cpu)
+    mode = None
+    if args.host_factor > 1:
+        mode = slow_day_mode(args.host_factor, robot_cpu, laptop_cpu, read_calibration())
+        robot_cpu, laptop_cpu = mode.robot_cores, mode.laptop_cores
+        say("bench_fault_soak: " + describe(mode))
+    emulated = emulated_host(args.emulate_slow_host, robot_cpu, laptop_cpu, os.cpu_count())
+    if args.emulate_slow_host > 1:
+        robot_cpu, laptop_cpu = emulated.robot_cores, emulated.laptop_cores
+        say(f"bench_fault_soak: EMULATING a host {emulated.slowdown:g} x slower than this one: "
+            f"the quotas divided by {emulated.slowdown:g}, the world in "
+            f"{emulated.world_cores:.3f} cores")
     stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
     out = os.path.abspath(args.out or os.path.join(root, "results", "bench_fault_soak", stamp))
     run_dir = os.path.join(out, "run")
@@ -183,7 +208,8 @@ def main(root: str, argv=None) -> int:
         f"{args.cfs_period_ms:g} ms period; logs and record in {run_dir}")
 
     bed = NamespaceBed(layout_with_cpu(robot_cpu, laptop_cpu),
-                       cfs_period_us=int(args.cfs_period_ms * 1000))
+                       cfs_period_us=int(args.cfs_period_ms * 1000),
+                       world_cores=emulated.world_cores if args.emulate_slow_host > 1 else 0.0)
     injected: List[InjectedFault] = []
     sampler: Optional[Sampler] = None
     teardown_left: List[str] = []
@@ -199,7 +225,7 @@ def main(root: str, argv=None) -> int:
             injector.start_roscore()
             world = launch_demo(session, bed, demo, model_path, start, goals, record_path,
                                 run_dir, "unshaped", master_running=True, respawn=True,
-                                echo=quiet_world, record_critical=True)
+                                echo=quiet_world, record_critical=True, mode=mode)
             sampler.start()
             try:
                 run_schedule(schedule, sampler, injector, world, injected)
@@ -218,7 +244,8 @@ def main(root: str, argv=None) -> int:
         return 1
     left = teardown_left + leftovers(bed, master_uri)
     quotas = {"/" + os.path.relpath(q.path, CGROUP_CPU_ROOT): (scale, q.cores)
-              for scale, q in bed.quotas.items()}
+              for scale, q in list(bed.quotas.items())
+              + ([("world", bed.world_quota)] if bed.world_quota else [])}
     return report(out, args, schedule, injected, sampler, record_path, soak, left, quotas)
 
 
@@ -294,8 +321,8 @@ def judge(out: str, data: dict, rec: TestbedRecord, soak: SoakModel) -> int:
     faults = [InjectedFault(**dict(f, fault=fs.Fault(**f["fault"]))) for f in data["injected"]]
     end_t = census[-1].t if census else 0.0
     outcomes = judge_faults(faults, census, rec, soak, end_t)
-    left = list(data["leaks"]) + process_leak(census, rec, soak,
-                                                min((f.t for f in faults), default=0.0))
+    first_fault_t = min((f.t for f in faults), default=0.0)
+    left = list(data["leaks"]) + process_leak(census, rec, soak, first_fault_t)
     growths = growth(resources)
     missed = unchecked(rec) + startup_silences(faults, rec) + unjudged_growth(resources)
     quotas = {group: tuple(q) for group, q in data.get("quotas", {}).items()}

@@ -11,9 +11,11 @@ import numpy as np
 
 from anyscale_core.profile_plan import SATURATED_PERCENT
 
+from .cost_figures import cost_lines
 from .premise_figures import (EVERY_NODE_HOME, PREMISE_AMCL_HZ, START_UP_S, premise_figures,
                               premise_off_note)
-from .testbed_record import EventRecord, ProcessSample, TestbedRecord, Violation, mapping_at
+from .testbed_record import (LINK_AHEAD_RETURN, LINK_LOSS_RETURN, OTHER_RETURN, EventRecord,
+                             ProcessSample, TestbedRecord, Violation, kind_of_move, mapping_at)
 
 
 def longest_gap(times: Sequence[float], start: float, end: float) -> float:
@@ -133,15 +135,17 @@ MOVE_LEAD_S = 1.0
 @dataclass(frozen=True)
 class MoveFigures:
     event: EventRecord
-    output_gap_s: float        # the longest silence on the node's output topic that this move
-                               # owns (see move_figures); NaN if the run ended before the
-                               # move's window did, or if it was decided in a silence it does
-                               # not own
+    # The longest silence on the node's output topic that this move owns (see move_figures);
+    # NaN if the run ended before the move's window did, or if it was decided in a silence it
+    # does not own.
+    output_gap_s: float
     first_output_s: float      # decision -> first message on the output topic afterwards
-    silent_since_t: float = math.nan    # the output was already silent when the move was
-                                        # decided, since then (a silence this move does not own)
-    handover_s: float = math.nan        # the silence before the first message of another
-                                        # sender in the move's window (handover_silence)
+    # The output was already silent when the move was decided, since then (a silence this move
+    # does not own).
+    silent_since_t: float = math.nan
+    # The silence before the first message of another sender in the move's window
+    # (handover_silence).
+    handover_s: float = math.nan
 
 
 def handover_silence(rec: TestbedRecord, topic: str, start: float, end: float) -> float:
@@ -336,6 +340,10 @@ def format_summary(rec: TestbedRecord, outputs: Dict[str, str],
     failed = [e for e in rec.events if e.kind == "failed"]
     lines.append(f"migrations: {sum(e.kind == 'migrate' for e in moves)} out, "
                  f"{sum(e.kind == 'migrate_back' for e in moves)} back, {len(failed)} failed")
+    kinds = [kind_of_move(e) for e in moves]
+    lines.append(f"  returns: {kinds.count(LINK_LOSS_RETURN)} after a link loss, "
+                 f"{kinds.count(LINK_AHEAD_RETURN)} planned before a hole (link ahead), "
+                 f"{kinds.count(OTHER_RETURN)} other planned")
     for e in rec.events:
         if e.kind == "restart":
             lines.append(f"  restarted {e.node} at t={e.decided_t:.1f} s: {e.reason}")
@@ -369,6 +377,7 @@ def format_summary(rec: TestbedRecord, outputs: Dict[str, str],
         lines.append(f"AMCL position error vs ground truth: RMS {np.sqrt(np.mean(errors**2)):.3f}"
                      f" m, max {errors.max():.3f} m over {errors.size} poses")
     lines += premise_lines(rec)
+    lines += cost_lines(rec)
     if rec.bandwidth:
         up = np.array([b > 0 for _, b in rec.bandwidth])
         lines.append(f"link: up {100 * up.mean():.0f} % of the samples, "

@@ -5,9 +5,10 @@ end. It runs on the robot, so its receive times are what the robot's subscribers
 It also samples /proc for the processes of the model's nodes (the agents name them with
 `__name:=`) and their network namespace: on the one-machine test bed every scale's processes
 share one PID namespace, so two live instances of a node are visible even when the link
-between their scales is down and the master only knows one of them. A warm standby (anyscale_agent_cpp's
-python_standby; comm "python_standby", then "standby:...") has the node's command line but has
-not contacted the master: it is no instance until the agent starts it."""
+between their scales is down and the master only knows one of them. A warm standby
+(anyscale_agent_cpp's python_standby; comm "python_standby", then "standby:...") has the
+node's command line but has not contacted the master: it is no instance until the agent
+starts it."""
 import math
 import os
 import sys
@@ -18,7 +19,7 @@ from typing import Dict, List, Optional, Set
 import rosgraph
 import rospy
 from anyscale_msgs.msg import Mapping as MappingMsg
-from anyscale_msgs.msg import MigrationEvent, ScaleStatus
+from anyscale_msgs.msg import CostEstimates, MigrationEvent, ScaleStatus
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Float32, String
@@ -32,7 +33,6 @@ from .proc_census import is_standby_comm
 from .testbed_figures import colour_violations, format_summary, tolerance_violations
 from .testbed_record import (DECISION_PARAMS, EventRecord, ProcessSample, TestbedRecord,
                              save_record)
-
 
 
 def say(line: str):
@@ -149,6 +149,7 @@ class TestbedMonitor:
         rospy.Subscriber("/anyscale/wifi/bandwidth_mbps", Float32, self._on_bandwidth,
                          queue_size=10)
         rospy.Subscriber("/anyscale/status", ScaleStatus, self._on_scale_status, queue_size=10)
+        rospy.Subscriber("/anyscale/cost_estimates", CostEstimates, self._on_costs, queue_size=1)
         rospy.Subscriber(rospy.get_param("~ground_truth_topic", "/sim/ground_truth"), Odometry,
                          self._on_truth, queue_size=20)
         rospy.Subscriber(rospy.get_param("~status_topic", "/navigation/status"), String,
@@ -238,6 +239,15 @@ class TestbedMonitor:
             self.rec.scale_cpu.setdefault(msg.scale, []).append((self.now(),
                                                                  float(msg.cpu_percent)))
 
+    def _on_costs(self, msg):
+        costs = [{"node": c.node, "scale": c.scale, "model_percent": float(c.model_percent),
+                  "live_percent": float(c.live_percent),
+                  "measured_percent": float(c.measured_percent), "samples": int(c.samples),
+                  "lower_bound": bool(c.lower_bound), "failures": int(c.failures)}
+                 for c in msg.estimates]
+        with self.lock:
+            self.rec.cost_estimates = costs
+
     def _on_truth(self, msg):
         p, t = msg.pose.pose.position, msg.header.stamp.to_sec() - self.rec.started_wall
         q = msg.pose.pose.orientation
@@ -276,8 +286,13 @@ class TestbedMonitor:
     def run(self):
         rate = rospy.Rate(float(rospy.get_param("~sample_rate_hz", 5.0)))
         last_save = time.monotonic()
-        while not rospy.is_shutdown() and not self.done.is_set():
+        ended_by = "shutdown"
+        while not rospy.is_shutdown():
+            if self.done.is_set():
+                ended_by = "done"
+                break
             if self.duration_s > 0 and self.now() >= self.duration_s:
+                ended_by = "duration"
                 break
             self._sample()
             if time.monotonic() - last_save > 5.0:
@@ -288,6 +303,7 @@ class TestbedMonitor:
             except rospy.ROSInterruptException:
                 break
         self.rec.finished_t = self.now()
+        self.rec.ended_by = ended_by
         self.save()
         terminal = sys.stdout.isatty()     # on the test bed a pipe: run_testbed.py colours
         for line in format_summary(self.rec, self.outputs, self.tolerances).splitlines():

@@ -10,7 +10,15 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 # The decision node's private parameters a record keeps (evaluation_shortfall judges by them).
 DECISION_PARAMS = ("hysteresis_s", "bandwidth_hold_s", "weak_link_mbps", "hold_after_loss_s",
-                   "node_hold_after_loss_s")
+                   "node_hold_after_loss_s", "link_forecast")
+
+# What a move was, from its event (the decision node's reasons say it): a move out; a return
+# after the link was lost (the new instance started at home, the old one beyond reach); a return
+# planned before a hole the link map foresaw; any other return (the bandwidth or weak-link rule,
+# a connection's tolerance, the remote scale's CPU: planned, make before break).
+MOVE_OUT, LINK_LOSS_RETURN, LINK_AHEAD_RETURN, OTHER_RETURN = (
+    "move out", "link-loss return", "planned return (link ahead)", "other return")
+MOVE_KINDS = (MOVE_OUT, LINK_LOSS_RETURN, LINK_AHEAD_RETURN, OTHER_RETURN)
 
 
 @dataclass
@@ -64,6 +72,9 @@ class TestbedRecord:
     master_publishers: List[Tuple[float, Dict[str, List[str]]]] = field(default_factory=list)
     navigation_status: List[Tuple[float, str]] = field(default_factory=list)
     finished_t: Optional[float] = None
+    # Why the monitor ended: "done" (navigation's loops), "duration", or "shutdown" (the ROS
+    # system went down first: a required node of the world died, or the run was stopped).
+    ended_by: str = ""
     outputs: Dict[str, str] = field(default_factory=dict)         # node -> its output topic
     tolerances: Dict[str, float] = field(default_factory=dict)    # output topic -> Δ in s
     # output topic -> the subscriber nodes of its judged connections: a connection exists, and
@@ -97,6 +108,11 @@ class TestbedRecord:
     # of all its cores), (t, %) on this record's clock: a silence's cause then says whether the
     # scale that ran the node was at its limit. Empty in older records.
     scale_cpu: Dict[str, List[Tuple[float, float]]] = field(default_factory=dict)
+    # The decision node's live CPU cost estimates as it last published them
+    # (/anyscale/cost_estimates): per node and scale, the model's figure, the live estimate,
+    # the estimate when last learned there and from how many reports, whether that is a lower
+    # bound, returns for rate or CPU in a row. Empty in older records.
+    cost_estimates: List[Dict[str, object]] = field(default_factory=list)
 
     def save(self, path: str):
         with open(path, "w") as f:
@@ -165,6 +181,17 @@ def save_record(rec: TestbedRecord, lock, path: str):
     tmp = path + ".tmp"
     copy.save(tmp)
     os.replace(tmp, path)
+
+
+def kind_of_move(e: EventRecord) -> str:
+    """MOVE_KINDS of a migrate or migrate_back event ("" for any other event)."""
+    if e.kind == "migrate":
+        return MOVE_OUT
+    if e.kind != "migrate_back":
+        return ""
+    if e.reason.startswith("link to"):
+        return LINK_LOSS_RETURN
+    return LINK_AHEAD_RETURN if e.reason.startswith("link ahead") else OTHER_RETURN
 
 
 def mapping_at(rec: TestbedRecord, t: float) -> Dict[str, str]:

@@ -72,11 +72,12 @@ def process_layout(tag: str, subnet: str, pid: Optional[int] = None) -> TwoScale
 
 
 def setup_commands(layout: TwoScaleLayout) -> List[List[str]]:
-    r, l = layout.robot, layout.laptop
-    cmds = [["ip", "netns", "add", r.namespace], ["ip", "netns", "add", l.namespace],
-            ["ip", "link", "add", r.interface, "type", "veth", "peer", "name", l.interface],
-            ["ip", "link", "set", r.interface, "netns", r.namespace],
-            ["ip", "link", "set", l.interface, "netns", l.namespace]]
+    robot, laptop = layout.robot, layout.laptop
+    cmds = [["ip", "netns", "add", robot.namespace], ["ip", "netns", "add", laptop.namespace],
+            ["ip", "link", "add", robot.interface, "type", "veth", "peer", "name",
+             laptop.interface],
+            ["ip", "link", "set", robot.interface, "netns", robot.namespace],
+            ["ip", "link", "set", laptop.interface, "netns", laptop.namespace]]
     for end in layout.ends:
         cmds += [["ip", "-n", end.namespace, "addr", "add",
                   f"{end.address}/{layout.prefix_len}", "dev", end.interface],
@@ -103,7 +104,7 @@ def run(argv: List[str], check: bool = True) -> subprocess.CompletedProcess:
     done = subprocess.run(argv, capture_output=True, text=True)
     if check and done.returncode != 0:
         raise TwoScaleError(f"`{' '.join(argv)}` failed ({done.returncode}): "
-                           f"{(done.stderr or done.stdout).strip()}")
+                            f"{(done.stderr or done.stdout).strip()}")
     return done
 
 
@@ -220,16 +221,25 @@ def claim_layout(layout: TwoScaleLayout, lock_dir: str = "/run"):
 class TwoScaleTestbed:
     """Context manager: builds the namespaces, link and quotas; tears all of it down on exit,
     also after an exception. Processes are started with `start(scale, argv, ...)` and ended
-    (SIGINT, then SIGKILL) on teardown."""
+    (SIGINT, then SIGKILL) on teardown.
+
+    `world_cores` (an emulated slower host, slow_host.py): the processes started outside the
+    scales' quotas go into a CPU group `PREFIX_world` of that many cores instead."""
 
     def __init__(self, layout: TwoScaleLayout = TwoScaleLayout(), cgroup_prefix: str = "anyscale",
-                 cfs_period_us: int = CFS_PERIOD_US):
+                 cfs_period_us: int = CFS_PERIOD_US, world_cores: float = 0.0):
         self.layout = layout
         self.quotas: Dict[str, CpuQuota] = {
             end.scale: CpuQuota(f"{cgroup_prefix}_{end.scale}", end.cpu_cores,
                                 period_us=cfs_period_us)
             for end in layout.ends if end.cpu_cores > 0}
+        self.world_quota = CpuQuota(f"{cgroup_prefix}_world", world_cores,
+                                    period_us=cfs_period_us) if world_cores > 0 else None
         self.processes: List[subprocess.Popen] = []
+
+    def cpu_groups(self) -> List[CpuQuota]:
+        """Every CPU group of the bed."""
+        return list(self.quotas.values()) + ([self.world_quota] if self.world_quota else [])
 
     def __enter__(self) -> "TwoScaleTestbed":
         self._lock = claim_layout(self.layout)
@@ -240,7 +250,7 @@ class TwoScaleTestbed:
         try:
             for argv in setup_commands(self.layout):
                 run(argv)
-            for quota in self.quotas.values():
+            for quota in self.cpu_groups():
                 quota.create()
         except BaseException:
             self.teardown()
@@ -271,10 +281,11 @@ class TwoScaleTestbed:
               log_path: Optional[str] = None, cpu_quota: bool = True,
               stdout: Optional[int] = None, nice: int = 0) -> subprocess.Popen:
         """Starts argv inside the scale's namespace, in its own session, and in the scale's CPU
-        group unless `cpu_quota` is False (the simulated world is not the robot's computer), at
+        group unless `cpu_quota` is False (the simulated world is not the robot's computer;
+        with `world_cores`, it goes into the world's group instead), at
         niceness `nice` (WORLD_NICE for the world). Output goes to `log_path`, or to `stdout`
         (e.g. subprocess.PIPE), or nowhere."""
-        quota = self.quotas.get(scale) if cpu_quota else None
+        quota = self.quotas.get(scale) if cpu_quota else self.world_quota
 
         def before_exec():
             # The child joins the group before exec, so nothing it forks can escape the quota.
@@ -303,7 +314,7 @@ class TwoScaleTestbed:
             # namespaces, where deleting those does not remove them.
             attempt(left, "veth", lambda: left.extend(
                 remove_veths([end.interface for end in self.layout.ends])))
-            for quota in self.quotas.values():
+            for quota in self.cpu_groups():
                 attempt(left, f"cgroup {quota.path}",
                         lambda quota=quota: left.extend(filter(None, [quota.remove()])))
         return left

@@ -15,7 +15,8 @@ from std_msgs.msg import String
 rospy.init_node("relay_probe", anonymous=True)
 out = open(sys.argv[1], "a", buffering=1)
 rospy.Subscriber("/chatter_relay", String,
-                 lambda m: out.write("%.3f %s\\n" % (time.time(), m._connection_header["callerid"])))
+                 lambda m: out.write("%.3f %s\\n" % (time.time(),
+                                                      m._connection_header["callerid"])))
 rospy.spin()
 """
 

@@ -8,9 +8,9 @@ instance exists, the test freezes the robot's agent (SIGSTOP), so the pause that
 laptop instance's first output cannot be answered, then kills it (SIGKILL). roslaunch starts
 the agent again; it adopts the robot's relay, still running. The laptop's agent probes the
 link through the robot's agent: here it waits longer than the agent is gone before it calls
-the link lost, as it would for a robot agent killed alone (the soak's case), not frozen. The decision node must pause it
-within a period or two of the successor's first status, and the laptop's relay keeps the
-output."""
+the link lost, as it would for a robot agent killed alone (the soak's case), not frozen. The
+decision node must pause it within a period or two of the successor's first status, and the
+laptop's relay keeps the output."""
 import os
 import signal
 import time

@@ -53,6 +53,7 @@ def test_each_run_is_recorded_with_its_progress_line(evaluation):
     with open(out / "pair1-baseline" / "console.log") as f:
         assert "link schedule" in f.read()
 
+
 def test_it_writes_the_table_and_the_figures(evaluation):
     out, printed = evaluation
     for name in OUTPUTS:

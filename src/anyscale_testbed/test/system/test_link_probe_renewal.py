@@ -22,7 +22,9 @@ link is down, the master's news of its echo publisher never reaches the laptop a
 subscribed first. Before the silence of a subscription that never heard anything counted, the
 laptop reported its link down for a whole run (the main command, office floor, seed 0: the start
 had no coverage, and no node moved out though the link came back at 27 Mbit/s for 169 s)."""
+import functools
 import os
+import socket
 import subprocess
 import sys
 import time
@@ -30,6 +32,7 @@ import time
 import pytest
 
 from anyscale_core.polling import wait_for
+from anyscale_testbed.system_test_gate import NOT_RUN
 
 from anyscale_testbed.testbed_session import (NamespaceBed, TestbedSession, agent_binary,
                                               layout_with_cpu)
@@ -85,8 +88,36 @@ def listening_ports(bed, scale, program):
             if f'"{program}"' in line]
 
 
+@functools.lru_cache(maxsize=None)
+def socket_destroy_works():
+    """Whether `ss -K` closes a TCP connection on this machine (the kernel's
+    CONFIG_INET_DIAG_DESTROY): one made for the purpose on loopback, then destroyed."""
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen(1)
+        with socket.create_connection(server.getsockname()) as client:
+            peer, _ = server.accept()
+            with peer:
+                port = client.getsockname()[1]
+                run(["ss", "-K", "-t", "-H", "sport", "=", f":{port}"], check=False)
+                client.settimeout(2.0)
+                try:
+                    return client.recv(1) == b""
+                except socket.timeout:
+                    return False                # still open: nothing destroyed it
+                except OSError:
+                    return True                 # ECONNABORTED: destroyed
+
+
+def needs_socket_destroy():
+    if not socket_destroy_works():
+        pytest.skip(NOT_RUN + "this kernel lacks CONFIG_INET_DIAG_DESTROY (`ss -K` closed "
+                    "nothing on a connection made for the purpose)")
+
+
 @pytest.fixture(scope="module", params=["every connection", "the counted topic's"])
 def outage(request, tmp_path_factory):
+    needs_socket_destroy()
     run_dir = str(tmp_path_factory.mktemp("renewal"))
     statuses = os.path.join(run_dir, "laptop_link.txt")
     with NamespaceBed(layout_with_cpu(0.0, 0.0)) as bed:
@@ -116,6 +147,7 @@ def outage(request, tmp_path_factory):
         assert wait_for(lambda: any(rate > 0 for _, _, rate in laptop_link(statuses)), 30.0, 0.2), \
             "the laptop never counted " + COUNTED
         talker_ports = listening_ports(bed, "robot", "rostopic")
+        assert talker_ports, "no port of the robot's rostopic publisher found to cut"
         bed.set_link(False)
         if request.param == "every connection":
             killed = (kill_connections(bed, "robot", bed.address("laptop"))
@@ -133,8 +165,7 @@ def outage(request, tmp_path_factory):
 
 
 def test_the_laptop_reports_its_link_up_soon_after_the_link_returns(outage):
-    if outage["killed"] == 0:
-        pytest.skip("`ss -K` closed nothing: the kernel lacks CONFIG_INET_DIAG_DESTROY")
+    assert outage["killed"] > 0, "the outage closed no connection between the scales"
     up = [t - outage["back"] for t, ok, _ in outage["statuses"] if ok and t > outage["back"]]
     print(f"link up again {up[0]:.2f} s after it returned" if up else "link never up again")
     assert up, "the laptop never reported its link up again after the outage"
@@ -142,8 +173,7 @@ def test_the_laptop_reports_its_link_up_soon_after_the_link_returns(outage):
 
 
 def test_the_laptop_counts_a_topic_from_the_robot_again_soon_after_the_link_returns(outage):
-    if outage["killed"] == 0:
-        pytest.skip("`ss -K` closed nothing: the kernel lacks CONFIG_INET_DIAG_DESTROY")
+    assert outage["killed"] > 0, "the outage closed no connection between the scales"
     # A rate from after the return: the counter's 2 s window must have seen new messages.
     counted = [t - outage["back"] for t, _, rate in outage["statuses"]
                if rate > 0 and t > outage["back"] + 2.5]
@@ -151,6 +181,48 @@ def test_the_laptop_counts_a_topic_from_the_robot_again_soon_after_the_link_retu
           else f"{COUNTED} never counted again")
     assert counted, f"the laptop never counted {COUNTED} again after the outage"
     assert counted[0] <= RECOVER_S, f"{COUNTED} counted again only {counted[0]:.1f} s after"
+
+
+def test_listening_ports_finds_the_ports_of_a_rostopic_publisher(tmp_path):
+    """The outage above cuts the talker's connections by the ports this finds: a name that no
+    longer matched would leave them open and its tests judging an outage that cut nothing."""
+    with NamespaceBed(layout_with_cpu(0.0, 0.0)) as bed:
+        session = TestbedSession(bed, str(tmp_path))
+        env = session.env("robot")
+        bed.start("robot", ["roscore", "-p", str(session.port)], env,
+                  str(tmp_path / "logs" / "roscore.log"), cpu_quota=False)
+
+        def ask_master(*argv):      # inside the robot's namespace, where the master is
+            return subprocess.run(namespace_exec(bed.end("robot"), [sys.executable, "-c",
+                                                                    ASK_MASTER] + list(argv)),
+                                  env=env, capture_output=True, text=True, timeout=90)
+        up = ask_master()
+        assert up.returncode == 0, up.stdout + up.stderr
+        bed.start("robot", ["rostopic", "pub", "-r", "10", COUNTED, "std_msgs/String", "hi"],
+                  env, str(tmp_path / "logs" / "talker.log"))
+        port = ask_master(COUNTED)
+        assert port.returncode == 0, port.stdout + port.stderr
+        assert int(port.stdout) in listening_ports(bed, "robot", "rostopic"), port.stdout
+
+
+# Waits (60 s at most) for the master, and with a topic as argv[1] for its first publisher,
+# whose XML-RPC port it prints.
+ASK_MASTER = """
+import sys, time, rosgraph
+master = rosgraph.Master("/port_test")
+for _ in range(300):
+    try:
+        published = master.getSystemState()[0]
+    except OSError:
+        published = None            # not up yet
+    pubs = [n for t, n in published or [] if t == sys.argv[1]] if sys.argv[1:] else []
+    if pubs:
+        print(master.lookupNode(pubs[0][0]).rsplit(":", 1)[1].strip("/"))
+    if pubs or (published is not None and not sys.argv[1:]):
+        sys.exit(0)
+    time.sleep(0.2)
+sys.exit("no master" + (", or no publisher of " + sys.argv[1] if sys.argv[1:] else ""))
+"""
 
 
 def wait_for_log(path, text, timeout_s):

@@ -9,6 +9,7 @@ import time
 import psutil
 import pytest
 
+from anyscale_testbed.system_test_gate import NOT_RUN
 from anyscale_testbed.testbed_session import agent_binary
 from anyscale_testbed.two_scale_testbed import (TwoScaleTestbed, missing_capabilities,
                                                 namespace_exec, process_layout)
@@ -25,9 +26,9 @@ MODEL = os.path.join(HERE, "..", "..", "..", "anyscale_agent_cpp", "test", "conf
 def _why_skip():
     missing = missing_capabilities(need_cgroups=False)
     if missing:
-        return "needs " + "; ".join(missing)
+        return NOT_RUN + "this machine lacks " + "; ".join(missing)
     if not agent_binary():
-        return "anyscale_agent is not built or the workspace is not sourced"
+        return NOT_RUN + "anyscale_agent is not built or the workspace is not sourced"
     return None
 
 

@@ -50,7 +50,8 @@ def race(tmp_path_factory):
         moved = wait_for(lambda: relay_in(laptop) and len(relay_processes()) == 1, 60.0, 0.1)
         assert moved, f"the relay never ran on the laptop alone: {relay_processes()}"
         pid, name = relay_in(laptop)
-        api = in_scale(bed, session, "robot", [sys.executable, "-c", LOOKUP, "/" + name]).stdout.strip()
+        api = in_scale(bed, session, "robot",
+                       [sys.executable, "-c", LOOKUP, "/" + name]).stdout.strip()
         assert api.startswith("http://"), api
         os.kill(pid, signal.SIGSTOP)
         down = time.time()

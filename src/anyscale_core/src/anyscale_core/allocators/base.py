@@ -1,11 +1,31 @@
 """What every allocator takes and returns, and the scales a node may move to right now."""
 from dataclasses import dataclass, field
-from typing import AbstractSet, List, Mapping
+from typing import AbstractSet, Callable, List, Mapping, Optional, Tuple
 
 import numpy as np
 
 from ..characterisation import Characterisation
 from ..constraints import CPU_CAPACITY_PERCENT, DynamicState
+
+
+# s a decision of a searching allocator (paper_local, optimal at fleet size) may take: a tenth
+# of the decision node's default period (~period_s), so a late decision does not delay the next.
+DEFAULT_TIME_BUDGET_S = 0.1
+
+
+class Deadline:
+    """Called: whether the budget, counted from construction, has run out (never, for None)."""
+
+    def __init__(self, budget_s: Optional[float], clock: Callable[[], float]):
+        self._clock = clock
+        self._end = None if budget_s is None else clock() + budget_s
+
+    def __call__(self) -> bool:
+        return self._end is not None and self._clock() >= self._end
+
+    def left(self) -> Optional[float]:
+        """Seconds left (>= 0), or None without a budget."""
+        return None if self._end is None else max(0.0, self._end - self._clock())
 
 
 @dataclass(frozen=True)
@@ -18,6 +38,8 @@ class AllocationContext:
     violating: Mapping[int, str] = field(default_factory=dict)
     # nodes the link lost less than their hold after a loss ago (DecisionParams.hold_after_loss)
     held_after_loss: AbstractSet[int] = frozenset()
+    # (node, scale) moves a failed placement's back-off holds back (placement_backoff.py)
+    blocked: AbstractSet[Tuple[int, int]] = frozenset()
 
     def held_on_master(self, i: int) -> bool:
         """Node i may not leave the master: it violates, the link was lost less than its hold
@@ -51,12 +73,13 @@ def candidate_scales(ch: Characterisation, state: DynamicState,
     fits_alone = (ch.cpu + load[None, :] <= CPU_CAPACITY_PERCENT + 1e-9)
     fits_alone[:, ch.master] = True
     mask &= fits_alone & (ch.memory[:, None] <= ch.scale_memory[None, :])
-    for i in range(ch.num_nodes):
-        if ch.pinned[i]:
-            mask[i] = ch.allowed[i]
-        elif ctx.held_on_master(i):
-            mask[i] = False
-            mask[i, ch.master] = True
+    mask[ch.pinned] = ch.allowed[ch.pinned]
+    named = set(ctx.violating) | set(ctx.held_after_loss) | set(ctx.migrated_back_at)
+    held = [i for i in named if not ch.pinned[i] and ctx.held_on_master(i)]
+    mask[held] = False
+    mask[held, ch.master] = True
+    for i, k in ctx.blocked:
+        mask[i, k] = False
     return mask
 
 

@@ -17,6 +17,7 @@ from ..characterisation import Characterisation
 from ..constraints import (CPU_CAPACITY_PERCENT, DynamicState, admission_state,
                            required_bandwidth, scale_cpu, scale_memory)
 from .base import AllocationContext, Decision, Move, candidate_scales
+from .move_delta import UnitDeltas
 
 
 class PaperAllocator:
@@ -50,7 +51,7 @@ class PaperAllocator:
         return Decision(current, moves)
 
     def _migrate_back(self, ch, assign, state, ctx):
-        migrated = [i for i in range(ch.num_nodes) if assign[i] != ch.master and not ch.pinned[i]]
+        migrated = [int(i) for i in np.flatnonzero((assign != ch.master) & ~ch.pinned)]
         if not migrated:
             return None
         forced = self._must_return(ch, assign, state, ctx, migrated)
@@ -63,16 +64,13 @@ class PaperAllocator:
             moves.append(Move(i, int(new[i]), ch.master, reason))
             new[i] = ch.master
         while required_bandwidth(ch, new) > state.bandwidth_mbps + 1e-9:
-            remaining = [i for i in migrated if new[i] != ch.master]
-            if not remaining:
+            remaining = np.array([i for i in migrated if new[i] != ch.master], dtype=np.int64)
+            if not len(remaining):
                 break
             need = required_bandwidth(ch, new)
-            relief = []
-            for i in remaining:
-                trial = new.copy()
-                trial[i] = ch.master
-                relief.append(need - required_bandwidth(ch, trial))
-            i = remaining[int(np.argmax(relief))]
+            # What each one's return frees: the node whose return frees the most goes.
+            relief = -UnitDeltas(ch).bandwidth(new)[remaining, ch.master]
+            i = int(remaining[int(np.argmax(relief))])
             moves.append(Move(i, int(new[i]), ch.master,
                               f"bandwidth {state.bandwidth_mbps:.2f} < {need:.2f} Mbit/s needed"))
             new[i] = ch.master
@@ -89,7 +87,8 @@ class PaperAllocator:
                 forced[i] = f"connection spending its tolerance: {ctx.violating[i]}"
         cpu = scale_cpu(ch, assign, state.load_vector(ch))
         mem = scale_memory(ch, assign)
-        for k in range(ch.num_scales):
+        over = (cpu > CPU_CAPACITY_PERCENT + 1e-9) | (mem > ch.scale_memory + 1e-9)
+        for k in np.flatnonzero(over):
             if k == ch.master:
                 continue
             # Return the heaviest nodes of an overloaded scale until it fits again.
@@ -106,25 +105,31 @@ class PaperAllocator:
     @staticmethod
     def _migrate_one(ch, assign, state, ctx) -> Decision:
         mask = candidate_scales(ch, state, ctx)
-        node_list = [i for i in np.argsort(-ch.cpu[:, ch.master], kind="stable")
-                     if assign[i] == ch.master and not ch.pinned[i] and mask[i].sum() > 1]
-        scale_list = [k for k in np.argsort(-ch.cpu_ghz, kind="stable") if k != ch.master]
+        order = np.argsort(-ch.cpu[:, ch.master], kind="stable")
+        node_list = order[(assign[order] == ch.master) & ~ch.pinned[order]
+                          & (mask[order].sum(axis=1) > 1)]
+        scale_list = np.array([k for k in np.argsort(-ch.cpu_ghz, kind="stable")
+                               if k != ch.master], dtype=np.int64)
+        if not len(node_list) or not len(scale_list):
+            return Decision(assign.copy(), [])
         load = state.load_vector(ch)
         cpu = scale_cpu(ch, assign, load)
         mem = scale_memory(ch, assign)
         bandwidth = admission_state(ch, assign, state).bandwidth_mbps
-        for i in node_list:
-            for k in scale_list:
-                if not mask[i, k]:
-                    continue
-                trial = assign.copy()
-                trial[i] = k
-                if required_bandwidth(ch, trial) > bandwidth + 1e-9:
-                    continue
-                if cpu[k] + ch.cpu[i, k] > CPU_CAPACITY_PERCENT + 1e-9 \
-                        or mem[k] + ch.memory[i] > ch.scale_memory[k] + 1e-9:
-                    continue  # scale_j cannot allocate node_i: next scale
-                return Decision(trial, [Move(int(i), int(assign[i]), int(k),
-                                             f"{ch.scale_names[k]} can take it "
-                                             f"({ch.cpu[i, k]:.0f} % CPU there)")])
-        return Decision(assign.copy(), [])
+        need = required_bandwidth(ch, assign) \
+            + UnitDeltas(ch).bandwidth(assign)[np.ix_(node_list, scale_list)]
+        # The first (node_i, scale_j) in the order of node_list, then scale_list, that
+        # scale_j can allocate with the bandwidth the move leaves.
+        fits = mask[np.ix_(node_list, scale_list)] & (need <= bandwidth + 1e-9) \
+            & (cpu[scale_list] + ch.cpu[np.ix_(node_list, scale_list)]
+               <= CPU_CAPACITY_PERCENT + 1e-9) \
+            & (mem[scale_list] + ch.memory[node_list][:, None]
+               <= ch.scale_memory[scale_list] + 1e-9)
+        if not fits.any():
+            return Decision(assign.copy(), [])
+        row, col = divmod(int(np.argmax(fits.ravel())), len(scale_list))
+        i, k = int(node_list[row]), int(scale_list[col])
+        trial = assign.copy()
+        trial[i] = k
+        return Decision(trial, [Move(i, int(assign[i]), k, f"{ch.scale_names[k]} can take it "
+                                                           f"({ch.cpu[i, k]:.0f} % CPU there)")])

@@ -1,6 +1,5 @@
-"""`anyscale top` and `anyscale model draft`: the commands that read a running ROS graph, a live
-view of it and a first model drafted from it. rospy is imported only when they run, so that
-check, plan and simulate work without ROS installed."""
+"""`anyscale model draft`: a first system model drafted from the running ROS graph, with TODO
+where a human must decide. rospy is imported only when it runs."""
 import os
 import sys
 
@@ -9,22 +8,6 @@ from .model import ModelError
 
 
 def add_parsers(sub):
-    top = add_command(
-        sub, "top", run_top, help="live view of scales, nodes, connection rates and events",
-        description="A live terminal view of the running system: every scale (CPU, memory, "
-                    "link), every node and where it runs, each model connection's rate "
-                    "against freq_min/freq_opt, and the last migration events. Needs a ROS "
-                    "master.",
-        epilog="examples:\n  anyscale top\n  anyscale top --model testbed.yaml --once"
-               "\n\nexit status: 0; 1 no ROS master")
-    top.add_argument("--model", metavar="MODEL",
-                     help="system model YAML (default: the one the decision node publishes "
-                          "as /anyscale/model)")
-    top.add_argument("--once", action="store_true",
-                     help="print one frame once data has arrived, then exit")
-    top.add_argument("--period", type=float, default=1.0, metavar="S",
-                     help="refresh period in seconds (default: 1)")
-
     model = sub.add_parser("model", help="write system models: `anyscale model draft`",
                            description="Commands that write system models.")
     model_sub = model.add_subparsers(dest="model_command", metavar="MODEL_COMMAND")
@@ -50,12 +33,6 @@ def add_parsers(sub):
                        help="how long to count each connection's messages (default: 5)")
     draft.add_argument("--force", action="store_true", help="overwrite OUTPUT if it exists")
     draft.set_defaults(command="model draft")
-
-
-def run_top(args) -> int:
-    # Imported here: check, plan and simulate must work without ROS installed.
-    from . import top_view
-    return top_view.run(args.model, args.once, max(args.period, 0.1))
 
 
 def run_model_draft(args) -> int:

@@ -1,0 +1,77 @@
+"""System test of learning from placements that fail (issue 40) on the two-scale test bed (root:
+network namespaces, tc, cgroups; conftest.py skips without them): a laptop whose CPU quota is too
+small for AMCL at its optimal rate. Without learning, AMCL went out on the model's 36 %, came
+home for its rate and went out again about every T; with it, the decision node learns AMCL's
+cost on the laptop and backs the move off, so AMCL goes out a few times at most, and every Δ
+holds. The link is a fixed good one (scheduled), so no return is the link's doing.
+
+One run of the small loop serves every test here; the laptop's quota is set low enough that
+AMCL cannot reach its rates there, which the first test checks, so that the others test what
+they claim."""
+import glob
+import os
+import subprocess
+import sys
+
+import pytest
+
+from anyscale_testbed.calibration_file import quota_cores
+from anyscale_testbed.testbed_record import OTHER_RETURN, TestbedRecord, kind_of_move
+
+# Judges AMCL's rate on a starved laptop and the outputs' Δ at fixed quotas (conftest.py skips
+# on a host too slow for them).
+pytestmark = pytest.mark.fixed_cpu_quota
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "..", ".."))
+DURATION_S = 100.0
+HYSTERESIS_S = 10.0
+# A laptop this small cannot give AMCL its optimal rate beside AR recognition (the calibration
+# file's 0.9 cores can on a normal day); one much smaller (0.12) starves the laptop's agent too,
+# whose rate monitor then sees silences that are its own.
+LAPTOP_CPU_CORES = 0.3
+MOST_MOVES_OUT = 3          # issue 40: at most 3 moves of AMCL out; one every ~T+10 s would be 5
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory, slow_host_argv, host_factor):
+    out = tmp_path_factory.mktemp("weak_laptop")
+    robot_cpu, _ = quota_cores(None, None)
+    done = subprocess.run(
+        [sys.executable, os.path.join(ROOT, "scripts", "run_testbed.py"), "--world",
+         "small_loop", "--link", "schedule", "--schedule", "[[0, 27]]", "--loops", "5",
+         "--duration", str(DURATION_S), "--hysteresis", str(HYSTERESIS_S),
+         "--robot-cpu", str(robot_cpu), "--laptop-cpu", str(LAPTOP_CPU_CORES),
+         "--out", str(out)] + slow_host_argv,
+        capture_output=True, text=True, timeout=DURATION_S + 180 * host_factor)
+    records = glob.glob(str(out / "*" / "record.json"))
+    assert done.returncode == 0 and records, done.stdout[-3000:] + done.stderr[-3000:]
+    print(done.stdout)      # the run's own account, shown with -s or on failure
+    return TestbedRecord.load(records[0])
+
+
+def moves_of_amcl(rec, kind):
+    return [e for e in rec.events if e.node == "amcl" and e.kind == kind and e.success]
+
+
+def test_the_laptop_is_too_small_for_amcl(run):
+    """The premise: AMCL went out and was sent home for its rate or CPU on the laptop at least
+    once (else the run tests nothing)."""
+    returns = [e for e in moves_of_amcl(run, "migrate_back")
+               if kind_of_move(e) == OTHER_RETURN and not e.reason.startswith("bandwidth")]
+    assert returns, [(e.t, e.kind, e.reason) for e in run.events]
+
+
+def test_amcl_goes_out_a_few_times_at_most(run):
+    out = moves_of_amcl(run, "migrate")
+    assert 1 <= len(out) <= MOST_MOVES_OUT, [(round(e.t, 1), e.reason) for e in out]
+
+
+def test_the_learned_cost_on_the_laptop_is_above_the_models(run):
+    assert run.cost_estimates, "no /anyscale/cost_estimates recorded"
+    amcl = [c for c in run.cost_estimates if c["node"] == "amcl" and c["scale"] == "laptop"]
+    assert amcl and amcl[0]["live_percent"] > amcl[0]["model_percent"], run.cost_estimates
+
+
+def test_every_output_kept_its_tolerance(run):
+    assert not run.violations, [(v.topic, round(v.silence_s, 2), v.cause)
+                                for v in run.violations]

@@ -5,7 +5,8 @@ closing line "N passed, N failed, N skipped" that CI reads; exits 1 if anything 
 Each `<testcase>` element counts once, wherever it sits: gtest nests its `<testsuite>`s under
 a `<testsuites>` root whose totals repeat theirs, and catkin's own reader
 (catkin.test_results.test_results2) adds both, counting every gtest twice. A case with a
-`<failure>` or `<error>` child failed, one with a `<skipped>` child was skipped.
+`<failure>` or `<error>` child failed, one with a `<skipped>` child (or gtest's
+status="notrun") was skipped.
 
 A rostest run leaves two files: `rosunit-NAME.xml` with the test node's own cases, and the
 wrapper `rostest-*.xml` with one case per test node of the launch. The wrapper's case is a test
@@ -44,8 +45,8 @@ def count_cases(root: ET.Element) -> Counts:
         children = {child.tag for child in case}
         if children & {"failure", "error"}:
             counts.failed += 1
-        elif "skipped" in children:
-            counts.skipped += 1
+        elif "skipped" in children or case.get("status") == "notrun":
+            counts.skipped += 1     # gtest marks a DISABLED_ test status="notrun"
         else:
             counts.passed += 1
     return counts

@@ -91,3 +91,13 @@ def test_an_unreadable_result_file_is_a_failure(tmp_path, capsys):
 def test_a_missing_folder_is_named(tmp_path, capsys):
     assert summarize_test_results.main([str(tmp_path / "nowhere")]) == 2
     assert "no such folder" in capsys.readouterr().err
+
+
+def test_a_disabled_gtest_counts_as_skipped(tmp_path, capsys):
+    write(tmp_path, "pkg/gtest-test_core.xml", """<?xml version="1.0" encoding="UTF-8"?>
+<testsuites tests="2" disabled="1" name="AllTests"><testsuite name="LeaseTable" tests="2">
+  <testcase name="Renews" status="run" classname="LeaseTable"/>
+  <testcase name="DISABLED_Slow" status="notrun" classname="LeaseTable"/>
+</testsuite></testsuites>""")
+    counts = summarize_test_results.summarize(str(tmp_path))
+    assert (counts.passed, counts.failed, counts.skipped) == (1, 0, 1)

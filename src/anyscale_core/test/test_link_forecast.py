@@ -52,12 +52,15 @@ def test_an_unknown_cell_never_carries_and_never_falls():
 
 
 def test_the_live_link_judges_the_cell_the_robot_is_in():
-    # The map says the robot's cell lost the link: the measurement says 20 Mbit/s, and wins.
+    # The map says the robot's cell lost the link, the measurement says 20 Mbit/s: no fall is
+    # foreseen (the reactive rules judge the link now), but the cell does not carry either,
+    # so no node skips those rules there.
     m = corridor(hole=(2, 3))
     fc = ahead(m, 2.5)
     assert fc.stretches[0].current and fc.stretches[0].stats.lost_fraction == 1.0
     assert fc.falls_below(5.0) is None
-    assert fc.carries_for_s(5.0, live_mbps=20.0) == 20.0
+    assert fc.carries_for_s(5.0, live_mbps=20.0) == 0.0
+    assert ahead(m, 3.5).carries_for_s(5.0, live_mbps=20.0) == 20.0   # past it
     # The map says 20 Mbit/s, the measurement 1: the link bad now is bad.
     fc = ahead(corridor(), 2.5)
     assert fc.carries_for_s(5.0, live_mbps=1.0) == 0.0
@@ -153,3 +156,49 @@ def test_a_forecast_with_no_stretch_carries_for_its_horizon():
     fc = LinkForecast("laptop", 20.0, (), 1.0)
     assert fc.carries_for_s(5.0, 0.0) == 20.0 and fc.falls_below(5.0) is None
     assert fc.describe(0.0) == "no forecast"
+
+
+def test_the_cruise_speed_outlasts_a_stop_at_a_goal():
+    """The forecast drives at the top speed of the last cruise_s: 5 s standing at a goal, or
+    pulling away from it, does not make the robot 'standing' with only its own cell ahead."""
+    track = PoseTrack(window_s=2.0, cruise_s=15.0)
+    t = 100.0
+    for k in range(51):                               # 10 s at 0.4 m/s
+        track.add(t + 0.2 * k, 0.08 * k, 0.0)
+    t += 10.0
+    for k in range(1, 26):                            # 5 s standing at the goal
+        track.add(t + 0.2 * k, 4.0, 0.0)
+    assert track.speed() == 0.0
+    assert track.cruise_speed() == pytest.approx(0.4)
+    for k in range(1, 76):                            # 15 s more standing: it stands
+        track.add(t + 5.0 + 0.2 * k, 4.0, 0.0)
+    assert track.cruise_speed() == pytest.approx(0.0)
+
+
+def test_a_short_track_cruises_at_its_own_speed():
+    track = PoseTrack(window_s=2.0, cruise_s=15.0)
+    assert track.cruise_speed() == 0.0
+    track.add(0.0, 0.0, 0.0)
+    track.add(0.3, 0.12, 0.0)                         # 0.3 s of track: shorter than a window
+    assert track.cruise_speed() == pytest.approx(0.4)
+
+
+def test_one_loss_among_a_cells_observations_makes_it_a_hole():
+    """A blip at a coverage edge is one observation of ten in its cell, but the pass that met it
+    lost the link: the cell is a hole (link_map_hole_lost_fraction 0), or with a looser
+    threshold a cell whose losses are rarer than it."""
+    def blip(params):
+        m = LinkMap(params)
+        for x in range(40):
+            for k in range(3):
+                m.add("laptop", T0 + k, x + 0.5, 0.5, 20.0, False)
+        for k in range(8):
+            m.add("laptop", T0 + 10 + k, 6.5, 0.5, 20.0, False)
+        m.add("laptop", T0 + 20, 6.5, 0.5, math.nan, True)      # 1 of 12 observations lost
+        return m
+    fc = ahead(blip(LinkMapParams(min_observations=3)), 2.2)
+    assert fc.stretches[4].stats.low_mbps == 20.0               # the quantile does not see it
+    assert fc.falls_below(5.0) == (pytest.approx(3.8, abs=1e-3), 0.0)
+    assert fc.carries_for_s(5.0, live_mbps=20.0) == pytest.approx(3.8, abs=1e-3)
+    fc = ahead(blip(LinkMapParams(min_observations=3, hole_lost_fraction=0.1)), 2.2)
+    assert fc.falls_below(5.0) is None and fc.carries_for_s(5.0, live_mbps=20.0) == 20.0

@@ -35,18 +35,25 @@ def place(s):
     return [(d, 0.0), (SIDE_M, d), (SIDE_M - d, SIDE_M), (0.0, SIDE_M - d)][side]
 
 
-def link_at(s):
-    return 0.0 if HOLE[0] <= s % (4 * SIDE_M) < HOLE[1] else 20.0
+def link_at(s, hole=HOLE):
+    return 0.0 if hole[0] <= s % (4 * SIDE_M) < hole[1] else 20.0
 
 
-def drive(ch, forecast: bool, laps: int = 2):
-    """The engine's events per lap, and the distance driven when each was decided."""
+def drive(ch, forecast: bool, laps: int = 2, hole=HOLE, stop_s: float = 0.0,
+          route: bool = False, speed=PoseTrack.cruise_speed):
+    """The engine's events per lap, and the distance driven when each was decided. The robot
+    stands stop_s at each goal; the path is the plan to the next goal, or with `route` the
+    mission's route on through the goal after it (navigation's ~mission_plan); `speed` is the
+    pose track's figure the forecast drives at."""
     e = DecisionEngine(ch, make_allocator("paper"),
                        DecisionParams(**PARAMS, link_forecast=LinkForecastParams(
                            enabled=forecast)))
     e.adopt_or_start(reports(0.0), 0.0)
     link_map, path, poses = LinkMap(), PathTracker(), PoseTrack()
-    s, t, heard, events = 0.0, 0.0, False, []
+    s, t, heard, events, standing_until, stood_at = 0.0, 0.0, False, [], 0.0, set()
+
+    def link_at(s):
+        return globals()["link_at"](s, hole)
     while s < laps * 4 * SIDE_M:
         t += PERIOD_S
         x, y = place(s)
@@ -60,15 +67,24 @@ def drive(ch, forecast: bool, laps: int = 2):
             link_map.add("laptop", 1.8e9 + t, x, y, link_at(s), False)
         elif heard:
             link_map.add("laptop", 1.8e9 + t, x, y, math.nan, True)
-        goal = next(g for g in GOALS if g > s % (4 * SIDE_M))
         lap_start = s - s % (4 * SIDE_M)
-        path.set_path([place(d) for d in np.arange(s, lap_start + goal, 0.2)] +
-                      [place(lap_start + goal)])
-        e.set_link_forecast(forecast_links(link_map, ["laptop"], path, x, y, poses.speed(),
+        goal = lap_start + next(g for g in GOALS if g > s % (4 * SIDE_M))
+        if t < standing_until:
+            goal = s                    # its current goal is the one it stands at
+        end = goal + (SIDE_M if route else 0.0)
+        path.set_path([place(d) for d in np.arange(s, end, 0.2)] + [place(end)])
+        e.set_link_forecast(forecast_links(link_map, ["laptop"], path, x, y, speed(poses),
                                            20.0) if forecast else None)
         result = e.tick(rep, t)
         events += [(s, ev) for ev in result.events]
-        s += (0.4 if e.mapping()["amcl"] == "laptop" else 0.2) * PERIOD_S
+        if t < standing_until:
+            continue
+        step = (0.4 if e.mapping()["amcl"] == "laptop" else 0.2) * PERIOD_S
+        if stop_s and goal not in stood_at and s + step >= goal - 1e-9:
+            s, standing_until = goal, t + stop_s        # arrived: stand at the goal
+            stood_at.add(goal)
+        else:
+            s += step
     return events
 
 
@@ -100,3 +116,42 @@ def test_lap_2_moves_out_sooner_after_the_hole_than_the_reactive_rules(testbed_c
     reactive = drive(ch, forecast=False)
     assert len(amcl_returns(reactive, 2, "link to")) == 1       # it meets the hole again
     assert first_out_after_hole(with_forecast, 2) < first_out_after_hole(reactive, 2)
+
+
+# A hole that starts 1 m past a goal, in the next 1 m cell: at 0.4 m/s the robot reaches it
+# 2.5 s after leaving the goal, within AMCL's 3 s home lead, so the return must be decided while
+# the robot stands there.
+HOLE_PAST_GOAL = (11.0, 14.0)
+HOME_LEAD_M = 3.0 * 0.4             # the home lead at the cruise speed
+
+
+def lap_2_amcl(events):
+    return [(round(s - 4 * SIDE_M, 2), ev.kind) for s, ev in events if ev.node == "amcl"
+            and 4 * SIDE_M <= s < 4 * SIDE_M + HOLE_PAST_GOAL[1]]
+
+
+def test_a_hole_just_past_a_goal_is_foreseen_while_the_robot_stands_at_it(testbed_ch):
+    """With the route past the goal and the cruise speed, lap 2's return starts a full home
+    lead before the hole, and AMCL stays home until past it."""
+    events = drive(testbed_ch, forecast=True, hole=HOLE_PAST_GOAL, stop_s=5.0, route=True)
+    assert len(amcl_returns(events, 1, "link to")) == 1, events
+    assert amcl_returns(events, 2, "link to") == [], events
+    moves = lap_2_amcl(events)
+    assert [kind for _, kind in moves] == ["migrate_back"], moves
+    assert moves[0][0] <= HOLE_PAST_GOAL[0] - HOME_LEAD_M + 0.1, moves
+
+
+def test_a_plan_that_ends_at_the_goal_or_a_standing_speed_is_late_for_it(testbed_ch):
+    """Why navigation publishes the route past the goal and the forecast drives at the cruise
+    speed: with the plan to the goal and the speed measured, the return starts as the robot
+    pulls away, half the lead before the hole; with the route but the measured speed, AMCL
+    moves out while the robot stands at the goal and comes straight back."""
+    late = drive(testbed_ch, forecast=True, hole=HOLE_PAST_GOAL, stop_s=5.0, route=False,
+                 speed=PoseTrack.speed)
+    moves = lap_2_amcl(late)
+    assert [kind for _, kind in moves] == ["migrate_back"], moves
+    assert moves[0][0] > HOLE_PAST_GOAL[0] - HOME_LEAD_M + 0.1, moves
+    flap = drive(testbed_ch, forecast=True, hole=HOLE_PAST_GOAL, stop_s=5.0, route=True,
+                 speed=PoseTrack.speed)
+    kinds = [kind for _, kind in lap_2_amcl(flap)]
+    assert kinds == ["migrate_back", "migrate", "migrate_back"], lap_2_amcl(flap)

@@ -13,7 +13,8 @@ PUBLISHES = {
     "camera_driver": {"/camera/image_raw", "/camera/camera_info"}, "odometry": {"/odom"},
     "amcl": {"/amcl_pose", "/particlecloud"}, "ekf": {"/odometry/filtered"},
     "ar_recognition": {"/ar_markers"}, "map_server": {"/map", "/map_metadata"},
-    "navigation": {"/cmd_vel", "/navigation/global_plan", "/navigation/local_plan",
+    "navigation": {"/cmd_vel", "/navigation/global_plan", "/navigation/mission_plan",
+                   "/navigation/local_plan",
                    "/navigation/current_goal", "/navigation/speed_limit", "/navigation/status"},
     "initial_pose_publisher": {"/initialpose"}, "world_sim": {"/sim/ground_truth"},
     # anyscale_core's, on the test bed

@@ -1,7 +1,8 @@
 """The link ahead on the planned path (no ROS): where the robot is on the planner's path, how
 fast it goes, and what the link map (link_map.py) says of each remote scale's link over the
-next horizon_s seconds at that speed. The cell the robot is in is judged by the live
-measurement, never by the map; an unknown cell never counts as carrying a node."""
+next horizon_s seconds at that speed. A fall in the cell the robot is in is the live
+measurement's to judge, never the map's; but neither that cell nor any other counts as carrying
+a node where the map knows it as a hole, nor where the map does not know it."""
 from collections import deque
 from dataclasses import dataclass
 import math
@@ -42,6 +43,9 @@ class LinkForecastParams:
                                    name="link_forecast_max_offset_m", minimum=0.01)
     speed_window_s: float = declared(2.0, "the robot's speed: distance over this long a track",
                                      "s", name="link_forecast_speed_window_s", minimum=0.1)
+    cruise_window_s: float = declared(
+        15.0, "the forecast drives at the robot's top speed over this long: a stop at a goal "
+        "does not blind it", "s", name="link_forecast_cruise_window_s", minimum=0.1)
     map: LinkMapParams = LinkMapParams()
     map_file: str = declared("", "the link map's file: loaded at start, saved every period "
                              "(empty: in memory only)", "path", name="link_map_file",
@@ -65,9 +69,10 @@ class LinkForecastParams:
 class PoseTrack:
     """The robot's recent poses (t, x, y): its speed, and where it was at a moment."""
 
-    def __init__(self, window_s: float = 2.0, keep_s: float = 10.0):
+    def __init__(self, window_s: float = 2.0, cruise_s: float = 15.0, keep_s: float = 10.0):
         self.window_s = window_s
-        self.keep_s = max(keep_s, window_s)
+        self.cruise_s = cruise_s
+        self.keep_s = max(keep_s, window_s + cruise_s)
         self._poses: Deque[Tuple[float, float, float]] = deque()
 
     def add(self, t: float, x: float, y: float):
@@ -113,6 +118,24 @@ class PoseTrack:
             return 0.0
         xy = np.array([p[1:] for p in recent])
         return float(np.hypot(*np.diff(xy, axis=0).T).sum() / (recent[-1][0] - recent[0][0]))
+
+    def cruise_speed(self) -> float:
+        """The highest speed() over the last cruise_s: the speed to look ahead at. A robot that
+        stopped at a goal, or is pulling away from one, drives on at about its cruise speed,
+        and a speed too high is the safe side in both directions: a hole is foreseen sooner
+        and a link ahead carries for less time."""
+        if len(self._poses) < 2:
+            return 0.0
+        t = np.array([p[0] for p in self._poses])
+        xy = np.array([p[1:] for p in self._poses])
+        travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+        ends = np.flatnonzero(t >= t[-1] - self.cruise_s)
+        starts = np.searchsorted(t, t[ends] - self.window_s)
+        span = t[ends] - t[starts]
+        ok = span >= self.window_s / 2          # a window of a few poses is noise, not speed
+        if not ok.any():
+            return self.speed()
+        return float(np.max((travelled[ends] - travelled[starts])[ok] / span[ok]))
 
 
 class PathTracker:
@@ -200,33 +223,41 @@ class Stretch:
 
 @dataclass(frozen=True)
 class LinkForecast:
-    """One remote scale's link over the next horizon_s, stretch by stretch."""
+    """One remote scale's link over the next horizon_s, stretch by stretch. A known cell whose
+    link was lost in more than hole_lost_fraction of its observations is a hole."""
     scale: str
     horizon_s: float
     stretches: Tuple[Stretch, ...]
     speed_mps: float
+    hole_lost_fraction: float = 0.0
+
+    def _hole(self, stats: CellStats) -> bool:
+        return stats.lost_fraction > self.hole_lost_fraction
 
     def carries_for_s(self, need_mbps: float, live_mbps: float) -> float:
         """How long from now the link will carry need_mbps: in the current cell by the measured
-        live_mbps (NaN or 0: not measured, or lost) where the map disagrees, then by the map's
-        figure in each cell ahead. An unknown cell does not carry, the current one neither: an
-        empty map carries nothing. horizon_s if it carries throughout."""
+        live_mbps (NaN or 0: not measured, or lost), then by the map's figure in each cell
+        ahead. A hole does not carry, the current cell neither: what this answers lets a node
+        skip the reactive rules, so the cell that just lost the link (at a coverage edge that
+        flickers) does not count as carrying because the link came back for a moment. An unknown
+        cell does not carry, the current one neither: an empty map carries nothing. horizon_s if
+        it carries throughout."""
         for st in self.stretches:
-            ok = st.stats is not None and (live_mbps >= need_mbps if st.current
-                                           else st.stats.low_mbps >= need_mbps)
+            ok = st.stats is not None and not self._hole(st.stats) and (
+                live_mbps >= need_mbps if st.current else st.stats.low_mbps >= need_mbps)
             if not ok:
                 return st.start_s
         return self.horizon_s
 
     def falls_below(self, need_mbps: float) -> Optional[Tuple[float, float]]:
         """(seconds from now, Mbit/s there) of the first known cell ahead whose figure is below
-        need_mbps or whose link was lost in most observations; None if none is foreseen. The
-        current cell never counts (the measurement judges it), nor does an unknown one."""
+        need_mbps or that is a hole; None if none is foreseen. The current cell never counts
+        (the measurement judges it), nor does an unknown one."""
         for st in self.stretches:
             if st.current or st.stats is None:
                 continue
-            if st.stats.low_mbps < need_mbps or st.stats.lost_fraction > 0.5:
-                return st.start_s, st.stats.low_mbps
+            if st.stats.low_mbps < need_mbps or self._hole(st.stats):
+                return st.start_s, 0.0 if self._hole(st.stats) else st.stats.low_mbps
         return None
 
     def describe(self, live_mbps: float) -> str:
@@ -278,7 +309,8 @@ def forecast_links(link_map: LinkMap, scales: Sequence[str], path: PathTracker,
     for scale in scales:
         out[scale] = LinkForecast(scale, horizon_s, tuple(
             Stretch(float(a), float(b), link_map.stats(scale, c), k == 0)
-            for k, (c, a, b) in enumerate(zip(cells, starts, ends))), speed_mps)
+            for k, (c, a, b) in enumerate(zip(cells, starts, ends))), speed_mps,
+            link_map.params.hole_lost_fraction)
     return out
 
 

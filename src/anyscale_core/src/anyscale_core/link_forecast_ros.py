@@ -39,7 +39,7 @@ class LinkForecastRos:
         self.full_scale_mbps = max(full_scale_mbps, 1e-3)
         self.lock = threading.Lock()
         self.map = self._load()
-        self.poses = PoseTrack(params.speed_window_s)
+        self.poses = PoseTrack(params.speed_window_s, params.cruise_window_s)
         self.path = PathTracker(params.max_offset_m)
         self.heard: set = set()                 # remote scales whose status came at least once
         self.live: Dict[str, float] = {}        # remote scale -> its latest measured Mbit/s
@@ -158,7 +158,7 @@ class LinkForecastRos:
                 why = "the link map is empty"
             else:
                 out = forecast_links(self.map, self.scales, self.path, pose[0], pose[1],
-                                     self.poses.speed(), self.p.horizon_s)
+                                     self.poses.cruise_speed(), self.p.horizon_s)
                 if out is None:
                     why = f"the robot is over {self.p.max_offset_m:g} m off its path"
             self.latest, self.why_none = out, why
@@ -271,7 +271,7 @@ class LinkForecastRos:
             for cell, stats in self.map.known_cells(scale):
                 x, y = self.map.centre_of(cell)
                 m.points.append(Point(x, y, 0.05 + 0.1 * k))
-                good = 0.0 if stats.lost_fraction > 0.5 else \
+                good = 0.0 if stats.lost_fraction > self.p.map.hole_lost_fraction else \
                     min(stats.low_mbps / self.full_scale_mbps, 1.0)
                 m.colors.append(ColorRGBA(1.0 - good, good, 0.0, 0.6))
             if not m.points:

@@ -42,6 +42,10 @@ class LinkMapParams:
                                      name="link_map_min_observations", minimum=1)
     max_age_s: float = declared(7 * 86400.0, "older observations are dropped", "s",
                                 name="link_map_max_age_s", minimum=1.0)
+    hole_lost_fraction: float = declared(
+        0.0, "a cell whose link was lost in more than this share of its observations is a hole "
+        "(a blip is one observation of a pass, but it was met on that pass)", "0..1",
+        name="link_map_hole_lost_fraction", minimum=0.0, maximum=1.0)
 
 
 @dataclass(frozen=True)

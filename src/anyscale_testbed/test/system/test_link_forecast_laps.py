@@ -59,14 +59,18 @@ def laps(run):
 
 
 def test_the_run_used_the_forecast(run):
+    """The forecast was there and acted: a move out early ("link ahead carries it") or a
+    planned return before a hole ("link ahead: ..."), which only a forecast gives."""
     rec, _ = run
     assert rec.decision_params.get("link_forecast") is True, rec.decision_params
+    by_forecast = [e for e in rec.events if "link ahead" in e.reason]
+    assert by_forecast, [(e.t, e.kind, e.node, e.reason) for e in rec.events]
 
 
 def test_on_lap_2_the_map_turns_link_loss_returns_into_planned_ones(laps):
     """Lap 2 has no more link-loss returns than lap 1, and fewer or a planned return before a
-    hole. Not 'none': a blip of a fraction of a second at the coverage's edge is one loss among
-    a cell's many observations, which its low quantile does not count as a hole."""
+    hole. Not 'none': a loss where lap 1 never lost the link (the coverage's edge flickers from
+    lap to lap) is not in the map."""
     first, second = laps
     lost = [f.amcl_returns[LINK_LOSS_RETURN] for f in laps]
     planned = second.amcl_returns[LINK_AHEAD_RETURN]

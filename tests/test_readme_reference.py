@@ -21,7 +21,7 @@ MARKDOWN = sorted([os.path.join(ROOT, "README.md")]
 
 # What the code names, by the calls that name it (Python and C++).
 PY_PRIVATE = re.compile(r'"(~\w+)(%d)?"')
-PY_HELPER_PARAM = re.compile(r'\b(?:number|number_param|frame_param|node_seconds)\(\s*"(\w+)"')
+PY_HELPER_PARAM = re.compile(r'\bParam\(\s*"(\w+)"')     # param_spec.Param("name", ...): ~name
 PY_TOPIC = re.compile(r'rospy\.(?:Publisher|Subscriber|Service)\(\s*"([\w/]+)"')
 CPP_PARAM = re.compile(r'\b(?:param|positive)(?:<[^>]*>)?\(\s*pnh_?\s*,\s*"(\w+)"'
                        r'|\bpnh_?\.(?:getParam|param)(?:<[^>]*>)?\(\s*"(\w+)"')

@@ -1,4 +1,5 @@
 // Entry point of the anyscale_agent node.
+#include <atomic>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -8,9 +9,12 @@
 
 namespace
 {
+std::atomic<bool> g_by_signal{false};
+
 // SIGTERM too, not just SIGINT: the agent must stop its nodes whichever way it is asked to end.
 void requestShutdown(int)
 {
+  g_by_signal = true;
   ros::requestShutdown();
 }
 
@@ -54,7 +58,7 @@ int main(int argc, char** argv)
             "command line (agent.launch's args)",
             key, key);
     anyscale_agent::AgentNode agent{nh, ros::NodeHandle("~"), config};
-    agent.spin();
+    agent.spin(g_by_signal);
   }
   catch (const std::exception& e)
   {

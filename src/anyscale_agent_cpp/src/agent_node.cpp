@@ -204,7 +204,7 @@ AgentNode::~AgentNode()
   syncLedger();
 }
 
-void AgentNode::spin()
+void AgentNode::spin(const std::atomic<bool>& by_signal)
 {
   ros::AsyncSpinner services_and_sampling(3);
   ros::AsyncSpinner supervision(1, &supervise_queue_);
@@ -213,7 +213,16 @@ void AgentNode::spin()
   supervision.start();
   graph.start();
   ros::waitForShutdown();
-  ROS_INFO("anyscale agent of scale '%s' stopping the nodes it started", scale_.c_str());
+  if (!by_signal && supervisor_.options().parent_death_signal == 0)
+  {
+    const auto left = supervisor_.leaveRunning();
+    ROS_WARN(
+        "anyscale agent of scale '%s' shut down over ROS, not by a signal: its %zu nodes run "
+        "on for the next agent to adopt (stop them with a signal to the agent)",
+        scale_.c_str(), left.size());
+  }
+  else
+    ROS_INFO("anyscale agent of scale '%s' stopping the nodes it started", scale_.c_str());
   supervisor_.stopAll();
   syncLedger();  // their capacity is free at once, not when their leases end
 }

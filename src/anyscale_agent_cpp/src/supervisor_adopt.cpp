@@ -225,7 +225,7 @@ bool Supervisor::adoptedExited(const Record& r) const
 
 void Supervisor::saveStateLocked()
 {
-  if (state_file_.path().empty())
+  if (state_file_.path().empty() || left_running_)
     return;
   NodeState state;
   state.boot_id = boot_id_;
@@ -246,6 +246,25 @@ void Supervisor::saveStateLocked()
     }
   if (auto staged = state_file_.stage(state))
     staged_state_ = std::move(staged);
+}
+
+std::vector<std::string> Supervisor::leaveRunning()
+{
+  std::vector<std::string> left;
+  StateLock lock(*this);
+  saveStateLocked();  // staged: the StateLock writes it, the last write of this supervisor
+  left_running_ = true;
+  for (auto it = records_.begin(); it != records_.end();)
+  {
+    if (isAlive(it->second))
+    {
+      left.push_back(it->first);
+      it = records_.erase(it);
+    }
+    else
+      ++it;
+  }
+  return left;
 }
 
 }  // namespace anyscale_agent

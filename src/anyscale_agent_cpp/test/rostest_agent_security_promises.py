@@ -2,7 +2,8 @@
 """rostest: requests that are well-formed but do more than the agent's contract allows (issue
 37): leases removed or shortened, pauses of nodes not declared pause_at_home, a tiny request
 that claims millions of entries, the agent's own configuration changed on the parameter server,
-overrides outside the state hand-off, watch lists naming subscribers the model does not have."""
+overrides outside the state hand-off, watch lists naming subscribers the model does not have, a
+shutdown over ROS that stopped the robot's drivers."""
 import os
 import shutil
 import signal
@@ -14,6 +15,7 @@ import time
 import unittest
 
 import genpy
+import rosnode
 import rospy
 import rostest
 from anyscale_msgs.msg import LinkProbe, NodeProcess
@@ -187,6 +189,8 @@ class AgentPromisesTest(unittest.TestCase):
 
     def test_the_agents_own_configuration_is_not_read_from_the_parameter_server(self):
         # rosparam set ~state_file /etc/<file>, then a restart: the agent replaced that file.
+        # Each restart leaves out of its command line what it tests, as roscpp would otherwise
+        # put the command line's value back on the parameter server.
         work = tempfile.mkdtemp(prefix="anyscale_promises_")
         self.addCleanup(shutil.rmtree, work, True)
         victim, elsewhere = os.path.join(work, "victim"), os.path.join(work, "elsewhere")
@@ -196,28 +200,75 @@ class AgentPromisesTest(unittest.TestCase):
         with open(evil, "w") as f:
             f.write("nodes: [{name: evil, launch: {package: anyscale_agent_cpp, "
                     "type: talker.py}}]\n")
-        command = [agent_binary(), "__name:=anyscale_agent_cfg", "_scale:=cfg", "_model:=" + MODEL,
-                   "_warm_start:=false", "_log_dir:=" + os.path.join(work, "log")]
-        for attempt in range(2):
-            proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-            try:
-                agent = Agent("cfg")
-                res = self._start(agent, "talker_cpp")
-                self.assertTrue(res.success, res.message)
-                self.assertFalse(self._start(agent, "evil").success)
-                self.assertTrue(agent.stop(node="talker_cpp", wait=True).success)
-                if attempt == 0:        # someone on the graph rewrites it, then the agent restarts
-                    for key, value in (("state_file", victim), ("model", evil),
-                                       ("log_dir", elsewhere), ("is_master", True),
-                                       ("scale", "robot"), ("ledger_file", victim),
-                                       ("robot", "intruder")):
-                        rospy.set_param("/anyscale_agent_cfg/" + key, value)
-            finally:
-                proc.send_signal(signal.SIGTERM)
-                proc.wait(timeout=30)
+        base = [agent_binary(), "__name:=anyscale_agent_cfg", "_scale:=cfg", "_warm_start:=false"]
+        model, log_dir = "_model:=" + MODEL, "_log_dir:=" + os.path.join(work, "log")
+        self._serve_and_stop(base + [model, log_dir])
+        for key, value in (("state_file", victim), ("model", evil), ("log_dir", elsewhere),
+                           ("is_master", True), ("scale", "robot"), ("ledger_file", victim),
+                           ("robot", "intruder")):
+            rospy.set_param("/anyscale_agent_cfg/" + key, value)
+        # Without _model:= it does not take the one on the parameter server: it does not start.
+        proc = subprocess.Popen(base + [log_dir], stdout=subprocess.DEVNULL,
+                                stderr=subprocess.PIPE)
+        try:
+            _, err = proc.communicate(timeout=30)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        self.assertNotEqual(proc.returncode, 0)
+        self.assertIn(b"_model:=", err)
+        # Without _log_dir:= neither: its default, not the one on the parameter server.
+        self._serve_and_stop(base + [model])
         with open(victim) as f:
             self.assertEqual(f.read(), "precious\n")
         self.assertFalse(os.path.exists(elsewhere))
+
+    def test_a_shutdown_over_ros_leaves_the_nodes_running_for_the_next_agent(self):
+        # rosnode kill (XML-RPC shutdown, anyone's to call) of the robot's agent stopped every
+        # node, the drivers too, and nothing started them again.
+        work = tempfile.mkdtemp(prefix="anyscale_promises_")
+        self.addCleanup(shutil.rmtree, work, True)
+        command = [agent_binary(), "__name:=anyscale_agent_keep", "_scale:=keep",
+                   "_model:=" + MODEL, "_warm_start:=false", "_nodes_outlive_agent:=true",
+                   "_log_dir:=" + os.path.join(work, "log")]
+        proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        pid = 0
+        try:
+            res = self._start(Agent("keep"), "talker_cpp")
+            self.assertTrue(res.success, res.message)
+            pid = res.pid
+            self.assertEqual(rosnode.kill_nodes(["/anyscale_agent_keep"])[1], [])
+            self.assertEqual(proc.wait(timeout=30), 0)
+            self.assertTrue(alive(pid), "the shutdown over ROS stopped the node")
+            # The next agent adopts it; a signal to that one stops it.
+            proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            successor = Agent("keep")
+            self.assertTrue(self._running(successor, "/talker_cpp"))
+            self.assertEqual(successor.node("/talker_cpp").pid, pid)
+            proc.send_signal(signal.SIGTERM)
+            proc.wait(timeout=30)
+            self.assertTrue(wait_for(lambda: not alive(pid), 10.0))
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+            if pid and alive(pid):
+                os.kill(pid, signal.SIGKILL)
+
+    def _serve_and_stop(self, command):
+        """Runs the agent `command`, checks it serves its model's nodes and not 'evil', and
+        ends it with SIGTERM."""
+        proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            agent = Agent("cfg")
+            res = self._start(agent, "talker_cpp")
+            self.assertTrue(res.success, res.message)
+            self.assertFalse(self._start(agent, "evil").success)
+            self.assertTrue(agent.stop(node="talker_cpp", wait=True).success)
+        finally:
+            proc.send_signal(signal.SIGTERM)
+            proc.wait(timeout=30)
 
 
 if __name__ == "__main__":

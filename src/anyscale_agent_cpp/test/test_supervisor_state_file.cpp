@@ -94,3 +94,31 @@ TEST(SupervisorStateFile, QueriesDoNotWaitForTheFileToBeWritten)
   ASSERT_TRUE(s.waitGone("/slow_disk", 10.0));
   EXPECT_TRUE(readNodeStateFile(path)->nodes.empty());
 }
+
+TEST(SupervisorStateFile, LeaveRunningLetsTheNodesGoAndKeepsThemListedForASuccessor)
+{
+  TempDir dir;
+  const std::string path = dir.path() + "/nodes.yaml";
+  int pid = 0;
+  {
+    SupervisorOptions o;
+    o.parent_death_signal = 0;
+    Supervisor s(o);
+    s.adopt(path);
+    std::string err;
+    pid = s.start("/driver", {"/bin/sleep", "30"}, tempLog("driver"), &err);
+    ASSERT_GT(pid, 0) << err;
+    s.markRunning("/driver");
+    EXPECT_EQ(s.leaveRunning(), std::vector<std::string>{"/driver"});
+    s.stopAll();  // as the agent's shutdown does after it: nothing left to stop
+  }               // nor does the destructor stop it, nor write the file again
+  EXPECT_EQ(::kill(pid, 0), 0) << "the node was stopped";
+  const auto left = readNodeStateFile(path);
+  ASSERT_TRUE(left && left->nodes.size() == 1);
+  EXPECT_EQ(left->nodes[0].pid, pid);
+  Supervisor successor;
+  const AdoptionReport report = successor.adopt(path);
+  ASSERT_EQ(report.adopted.size(), 1u) << (report.dropped.empty() ? "" : report.dropped[0]);
+  ASSERT_TRUE(successor.stop("/driver"));
+  EXPECT_TRUE(successor.waitGone("/driver", 10.0));
+}

@@ -73,16 +73,15 @@ def test_a_reader_that_goes_away_ends_the_command_quietly(testbed_path):
     assert "Traceback" not in err and "BrokenPipeError" not in err, err
 
 
-@pytest.mark.parametrize("command", ["check", "plan", "simulate", "profile", "thresholds",
-                                     "top", "model draft"])
+@pytest.mark.parametrize("command", ["check", "plan", "profile", "thresholds", "top",
+                                     "model draft"])
 def test_every_command_has_help(command, capsys):
     with pytest.raises(SystemExit) as done:
-        main(command.split() + ["--help"])
+        main(command.split() + ["--help"], plugins=[])
     assert done.value.code == 0
     out = capsys.readouterr().out
     assert "usage: anyscale " + command in out
-    if command != "simulate":           # the study's own options, see its README
-        assert "example" in out
+    assert "example" in out
 
 
 @pytest.mark.parametrize("argv,message", [
@@ -126,10 +125,6 @@ def test_simulate_without_the_study_says_what_to_install(capsys):
                    "study); build or install it beside anyscale_core"]
 
 
-def test_the_study_registers_simulate_through_its_package_xml():
-    assert ("anyscale_study", "anyscale_study.cli_simulate") in registered_modules()
-
-
 def test_a_broken_plugin_is_named_and_the_other_commands_still_work(testbed_path, capsys):
     assert main(["check", testbed_path], plugins=[("broken_pkg", "no_such_module_x")]) == 0
     assert "the commands of broken_pkg (no_such_module_x) are left out: " \
@@ -154,9 +149,9 @@ def test_unknown_options_of_other_commands_are_still_refused(testbed_path):
 
 def test_help_lists_the_commands_in_their_order(capsys):
     with pytest.raises(SystemExit) as done:
-        main(["--help"])
+        main(["--help"], plugins=[])
     assert done.value.code == 0
     out = capsys.readouterr().out
     listed = [line.split()[0] for line in out.splitlines()
               if line.startswith("    ") and not line.startswith("     ")]
-    assert listed == ["check", "plan", "top", "model", "profile", "thresholds", "simulate"]
+    assert listed == ["check", "plan", "top", "model", "profile", "thresholds"]

@@ -41,11 +41,13 @@ public:
   // Reads the model named by `config` and the parameters; throws std::runtime_error with the
   // reason if they are bad.
   AgentNode(ros::NodeHandle nh, ros::NodeHandle pnh, const AgentConfig& config);
-  // Stops every node it started before the ROS connection goes away.
+  // Stops every node it still supervises before the ROS connection goes away.
   ~AgentNode();
 
-  // Runs the callback queues until ROS shuts down.
-  void spin();
+  // Serves until ROS shuts down. A shutdown not `by_signal` (roscpp's XML-RPC `shutdown`, e.g.
+  // `rosnode kill`, which anyone on the graph may call) leaves nodes that outlive the agent
+  // running for its successor, as a kill would; a signal (roslaunch, Ctrl-C) stops them all.
+  void spin(const std::atomic<bool>& by_signal);
 
 private:
   // Service entry points (agent_requests.cpp): each answer that refuses a request is logged

@@ -154,6 +154,9 @@ public:
 
   // Stops all processes and waits for them; used on shutdown.
   void stopAll();
+  // Lets go of every running node, unsignalled, as a kill of the agent would: the state file
+  // keeps listing them for a successor to adopt, and is not written again. Their names.
+  std::vector<std::string> leaveRunning();
 
   // Once, before any start: adopts each node of the predecessor's `state_file` whose process
   // still runs (same pid, start time and command line), then keeps the file listing the running
@@ -212,7 +215,8 @@ private:
   std::vector<Group> orphan_groups_;        // leaders gone, members remain
   std::vector<std::string> unrequested_exits_;
   uint64_t unrequested_exit_count_ = 0;
-  NodeStateWriter state_file_;                           // no path until adopt(): no state file
+  NodeStateWriter state_file_;  // no path until adopt(): no state file
+  bool left_running_ = false;   // leaveRunning(): the file is a successor's
   std::optional<NodeStateWriter::Staged> staged_state_;  // for the StateLock to write
   std::string boot_id_;
 

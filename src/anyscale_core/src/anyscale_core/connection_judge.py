@@ -86,10 +86,8 @@ class ConnectionJudge:
     def _handed_over(self, c: int, now: float) -> bool:
         """Every end of connection c still settling has published from its new instance since:
         the grace covers a start, and the old instance publishes until the new one has (make
-        before break), so a silence after that is the output's own. Within the grace it was
-        not judged at all: AMCL moved out onto a link that AR's camera then saturated, its
-        laptop instance published for 1.4 s, lost its lease behind the full link, and
-        /amcl_pose stayed silent 5.9 s (Δ 2 s), judged only once the 8 s grace ran out."""
+        before break), so a silence after that is the output's own and is judged at once, not
+        only when the grace runs out (docs/results.md, "Δ at a move")."""
         settling = [i for i in (self.ch.conn_pub[c], self.ch.conn_sub[c])
                     if now - self.moved_at.get(i, -math.inf) < self.params.startup_grace_s]
         return all(self.output_seen_at.get(i, -math.inf) >= self.moved_at[i] for i in settling)

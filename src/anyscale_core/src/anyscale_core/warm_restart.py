@@ -2,16 +2,10 @@
 roslaunch started keeps the node's imports and forks the node from them, and forks it again at
 once when it is killed, so that a restart costs no imports.
 
-Why. The decision node renews the leases of the nodes it has moved off the robot, and a remote
-agent ends them when their lease (robot.launch: lease_s 3 s) runs out. Its imports (rospy,
-numpy, scipy, diagnostic_updater: about 0.5 s of CPU) took 5.6 s under the robot's 0.34-core
-quota, where it got about 0.09 of a core. In the fault soak's system test (run 2) a kill -9 of
-the decision node at t=87.2 s was followed by roslaunch's respawn at 88.4 s (respawn_delay
-1 s), init_node at 94.0 s and the first decision at 95.0 s: the laptop's AR recognition had
-lost its lease at 90.2 s, and /ar_markers was silent for 6.06 s (Δ 1 s) until the new node
-started it on the robot. Forked from a process that holds the imports, the node is running
-again about as soon as init_node and its first status messages allow (about 1 s there), and
-adopts the remote nodes while their leases still run.
+Why. A remote node lives only while the decision node renews its lease (robot.launch: lease_s
+3 s), and on the robot's quota the decision node's imports alone took longer than that after a
+respawn; forked from a process that holds them, it runs again in about 1 s and adopts the
+remote nodes while their leases still run (the measured incident: docs/design/decision_node.md).
 
 How. become_node() returns in the node's process. The process that called it stays behind as
 the node's warm standby: it names itself "standby:<name>" (/proc/PID/comm, as the agents'

@@ -22,16 +22,23 @@ from dataclasses import dataclass
 from typing import List
 
 
+# The prefix of a skip that says this machine cannot run a system test (no root, namespaces or
+# cgroups; anyscale_testbed.system_test_gate.NOT_RUN): such skips get a loud line of their own.
+NOT_RUN = "SYSTEM TEST NOT RUN"
+
+
 @dataclass
 class Counts:
     passed: int = 0
     failed: int = 0
     skipped: int = 0
+    not_run: int = 0            # of the skipped, the system tests this machine cannot run
 
     def add(self, other: "Counts"):
         self.passed += other.passed
         self.failed += other.failed
         self.skipped += other.skipped
+        self.not_run += other.not_run
 
     @property
     def total(self) -> int:
@@ -47,6 +54,9 @@ def count_cases(root: ET.Element) -> Counts:
             counts.failed += 1
         elif "skipped" in children or case.get("status") == "notrun":
             counts.skipped += 1     # gtest marks a DISABLED_ test status="notrun"
+            skip = case.find("skipped")
+            text = "" if skip is None else (skip.get("message") or "") + (skip.text or "")
+            counts.not_run += NOT_RUN in text
         else:
             counts.passed += 1
     return counts
@@ -103,6 +113,9 @@ def main(argv=None) -> int:
         print(f"summarize_test_results.py: no such folder: {args.results_dir}", file=sys.stderr)
         return 2
     total = summarize(args.results_dir)
+    if total.not_run:
+        print(f"  {NOT_RUN}: {total.not_run} system tests skipped because this machine cannot "
+              f"run them (their reasons in the log; ANYSCALE_REQUIRE_SYSTEM_TESTS=1 fails them)")
     print(f"{total.passed} passed, {total.failed} failed, {total.skipped} skipped")
     return 1 if total.failed else 0
 

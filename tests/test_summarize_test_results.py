@@ -101,3 +101,17 @@ def test_a_disabled_gtest_counts_as_skipped(tmp_path, capsys):
 </testsuite></testsuites>""")
     counts = summarize_test_results.summarize(str(tmp_path))
     assert (counts.passed, counts.failed, counts.skipped) == (1, 0, 1)
+
+
+def test_system_tests_not_run_get_a_line_of_their_own(tmp_path, capsys):
+    write(tmp_path, "pytest/pytest.xml", """<?xml version="1.0" encoding="utf-8"?>
+<testsuites><testsuite name="pytest" tests="3">
+  <testcase classname="t" name="test_bed"><skipped message="SYSTEM TEST NOT RUN: this machine
+lacks root"/></testcase>
+  <testcase classname="t" name="test_other"><skipped message="needs the study"/></testcase>
+  <testcase classname="t" name="test_ok"/>
+</testsuite></testsuites>""")
+    assert summarize_test_results.main([str(tmp_path)]) == 0
+    out = capsys.readouterr().out.strip().splitlines()
+    assert out[-2].startswith("SYSTEM TEST NOT RUN: 1 system tests skipped"), out
+    assert out[-1] == "1 passed, 0 failed, 2 skipped"

@@ -67,7 +67,7 @@ def period_times(ch, periods, forecast):
             for scale in remote:
                 link_map.add(scale, 1.8e9 + t, x, 0.5, 20.0, False)
             engine.set_link_forecast(forecast_links(link_map, remote, path, x, 0.5,
-                                                    poses.speed(), 20.0))
+                                                    poses.cruise_speed(), 20.0))
         engine.tick(rep, t)
         times.append(1000 * (time.thread_time() - started))
     return times[1:]

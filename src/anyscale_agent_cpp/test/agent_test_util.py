@@ -1,6 +1,7 @@
 """Helpers shared by the agent's rostests: master lookups, waiting, service proxies, raw TCPROS
 requests."""
 import io
+import os
 import socket
 import struct
 import time
@@ -24,6 +25,24 @@ def registered_pid(node):
     except OSError:
         return None
     return pid if code == 1 else None
+
+
+# anyscale_testbed.system_test_gate's prefix of a test this machine cannot run (the summary of
+# scripts/run_tests.sh counts such skips on a line of their own); this package cannot import
+# the test bed's.
+NOT_RUN = "SYSTEM TEST NOT RUN: "
+REQUIRE_ENV = "ANYSCALE_REQUIRE_SYSTEM_TESTS"
+
+
+def needs_root(test, why):
+    """Skips `test` (a unittest.TestCase) unless it runs as root, saying so as a test this
+    machine cannot run; with ANYSCALE_REQUIRE_SYSTEM_TESTS=1 (a release check) it fails
+    instead."""
+    if os.geteuid() == 0:
+        return
+    if os.environ.get(REQUIRE_ENV, "") not in ("", "0"):
+        test.fail(NOT_RUN + why)
+    test.skipTest(NOT_RUN + why)
 
 
 def wait_for(predicate, timeout, period=0.05):

@@ -17,7 +17,7 @@ import rospy
 import rostest
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from agent_test_util import Agent, wait_for  # noqa: E402
+from agent_test_util import Agent, needs_root, wait_for  # noqa: E402
 
 AGENT = "/anyscale_agent_robot"
 
@@ -123,9 +123,8 @@ class AgentBusStatsTest(unittest.TestCase):
         self.assertTrue(wait_for(lambda: self.latest("/bus20") is None, 10.0))
 
     def test_start_boost_ends_at_the_output_counted_from_bus_stats(self):
-        if os.geteuid() != 0:
-            self.skipTest("the start boost raises a node's priority (nice -5): "
-                          "needs root or CAP_SYS_NICE")
+        needs_root(self, "the start boost raises a node's priority (nice -5): needs root or "
+                   "CAP_SYS_NICE")
         res = self.agent.set_watched(topics=["/cpp_chatter"], subscribers=["/relay_cpp_chatter"])
         self.assertTrue(res.success, res.message)
         relay = self.agent.start(node="relay_cpp_chatter", param_overrides=[], lease_s=0.0)
@@ -150,9 +149,8 @@ class AgentBusStatsTest(unittest.TestCase):
             self.agent.stop(node="relay_cpp_chatter", wait=True)
 
     def test_a_late_output_is_boosted_until_its_next_message(self):
-        if os.geteuid() != 0:
-            self.skipTest("the late boost raises a node's priority (nice -5): "
-                          "needs root or CAP_SYS_NICE")
+        needs_root(self, "the late boost raises a node's priority (nice -5): needs root or "
+                   "CAP_SYS_NICE")
         res = self.agent.set_watched(topics=["/late_chatter"], subscribers=["/relay_late_chatter"])
         self.assertTrue(res.success, res.message)
         relay = self.agent.start(node="relay_late_chatter", param_overrides=[], lease_s=0.0)

@@ -264,3 +264,32 @@ def test_the_learning_bench_names_a_bad_argument(capsys):
     with pytest.raises(SystemExit):
         bench.parse_args(["--robot-cpu", "0"])
     assert "--robot-cpu: expected cores > 0, got 0" in capsys.readouterr().err
+
+
+def test_the_three_scale_bench_runs_both_scale_sets_on_one_seed(monkeypatch, tmp_path):
+    from test_evaluation_table import on, record
+    bench = load_bench("bench_three_scales")
+    argvs = []
+
+    def run(argv, out_dir):
+        argvs.append(argv)
+        three = "server" in argv[argv.index("--scales") + 1]
+        rec = record(mappings=[(5.0, on(), 0.0, 0.0),
+                               (30.0, on(amcl="server" if three else "laptop"), 0.0, 0.0),
+                               (60.0, on(), 0.0, 0.0)])
+        os.makedirs(os.path.join(out_dir, "office_floor-fake"))
+        rec.save(os.path.join(out_dir, "office_floor-fake", "record.json"))
+        return 0
+    monkeypatch.setattr(bench, "run_logged", run)
+    monkeypatch.setattr(bench, "start_on_the_testbed", lambda program: None)
+    assert bench.main(["--seed", "4", "--robot-cpu", "0.3", "--out", str(tmp_path)]) == 0
+    assert [a[a.index("--scales") + 1] for a in argvs] == ["robot,laptop", "robot,laptop,server"]
+    assert all(a[a.index("--seed") + 1] == "4" and a[a.index("--robot-cpu") + 1] == "0.3"
+               for a in argvs)
+    table = (tmp_path / "three_scales.md").read_text()
+    # AMCL: 5-30 s and 60-250 s home, 30-60 s out, on the laptop in one run, the server in the other
+    assert "| amcl: robot / laptop / server | 215 s / 30 s / - | 215 s / - / 30 s |" in table
+    # Recorded already: a second call runs nothing.
+    argvs.clear()
+    bench.main(["--out", str(tmp_path)])
+    assert argvs == []

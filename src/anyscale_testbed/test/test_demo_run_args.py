@@ -3,7 +3,8 @@
 import pytest
 
 from anyscale_testbed import demo_run
-from anyscale_testbed.demo_run import parse_args, robot_launch_args
+from anyscale_testbed.demo_launch import robot_launch_args
+from anyscale_testbed.demo_run import parse_args
 
 
 def test_seed_defaults_to_the_deterministic_model_and_passes_through():

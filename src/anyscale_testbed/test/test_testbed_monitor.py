@@ -38,6 +38,27 @@ def test_counts_processes_of_this_master_by_their_node_name(tmp_path):
     assert node_processes(NODE, MASTER)["census_node"] == []
 
 
+def test_a_fork_not_yet_execd_is_no_second_instance():
+    # An agent's child between its fork and its exec carries the agent's command line.
+    forker = [sys.executable, "-c",
+              "import os, time\nif os.fork() == 0:\n    time.sleep(30)\nelse:\n    time.sleep(30)"]
+    parent = spawn(forker + ["__name:=census_node"])
+    try:
+        assert wait_for(lambda: len(children(parent.pid)) == 1)
+        assert node_processes(NODE, MASTER)["census_node"] == [
+            os.readlink(f"/proc/{parent.pid}/ns/net")]
+    finally:
+        for child in children(parent.pid):
+            os.kill(child, signal.SIGKILL)
+        parent.kill()
+        parent.wait()
+
+
+def children(pid):
+    with open(f"/proc/{pid}/task/{pid}/children") as f:
+        return [int(c) for c in f.read().split()]
+
+
 def test_a_warm_standby_counts_once_started(tmp_path):
     script = tmp_path / "node"
     script.write_text("#!/usr/bin/python3\nimport time\ntime.sleep(30)\n")

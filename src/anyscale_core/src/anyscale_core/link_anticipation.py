@@ -40,6 +40,8 @@ class Anticipation:
 
 
 NOTHING = Anticipation({}, frozenset(), {}, {})
+# The "link ahead" diagnostics' summary of a tick in which the forecast changed nothing.
+NOTHING_DONE = "no node moved by it"
 
 
 class LinkAnticipation:

@@ -18,7 +18,7 @@ from nav_msgs.msg import Path
 from visualization_msgs.msg import Marker, MarkerArray
 
 from .job_worker import JobWorker
-from .link_anticipation import Anticipation
+from .link_anticipation import NOTHING_DONE, Anticipation
 from .link_forecast import LinkForecast, LinkForecastParams, PathTracker, PoseTrack, forecast_links
 from .link_map import LinkMap, LinkMapError, load_link_map, write_link_map
 
@@ -190,7 +190,7 @@ class LinkForecastRos:
         done += [f"{node_names[i]} home: {why}" for i, why in last.home.items()]
         done += [f"{node_names[i]} held: {why}" for i, why in last.held.items()]
         used = "" if self.p.enabled else " (not used: ~link_forecast false)"
-        stat.summary(DiagnosticStatus.OK, ("; ".join(done) or "no node moved by it") + used)
+        stat.summary(DiagnosticStatus.OK, ("; ".join(done) or NOTHING_DONE) + used)
         for scale, line in self.describe().items():
             stat.add(scale, line)
         return stat

@@ -5,6 +5,8 @@ WiFi coverage model of the floor (or a scripted schedule); each scale's processe
 cgroup CPU quota. The robot runs the master, the simulator, its agent and the decision node; the
 laptop runs its agent. Mapping changes are printed as they happen and a table at the end.
 Without root, namespaces or cgroups it says so and runs both scales on loopback, unshaped.
+With --scales robot,laptop,server a server joins them behind the WiFi's access point, on a
+wired segment (access_point_layout.py), with its agent and CPU quota (scale_set.py).
 
 This is the logic of scripts/run_testbed.py (the main job's second half). Run it with the
 workspace sourced (scripts/run_demo.sh does that):
@@ -12,70 +14,41 @@ workspace sourced (scripts/run_demo.sh does that):
     scripts/run_testbed.py --link schedule --schedule '[[0, 27], [40, 3], [60, 0], [75, 27]]'
     sudo -E scripts/run_testbed.py --start-goal 1      # the same loop, from the world's goal 1
     sudo -E scripts/run_testbed.py --normalise-cpu     # quotas follow the host's speed
+    sudo -E scripts/run_testbed.py --scales robot,laptop,server   # and a server
 """
 import argparse
 import contextlib
 import datetime
-import json
 import os
 import shutil
 import signal
 import sys
-from typing import List, Optional, Tuple
+from typing import Optional, Tuple
 
 import yaml
 
-from anyscale_core.learned_costs import FILE_NAME as LEARNED_COSTS
 from anyscale_core.link_map import LinkMapError, load_link_map
 from anyscale_testbed.calibration_file import (calibrated_reference_ms, nav_demo_path,
                                                quota_cores)
+from anyscale_testbed.demo_launch import LINK_MAP, PREFIX, launch_demo, world_start
 from anyscale_testbed.host_speed import (REFERENCE_IDLE_MS, CpuNormaliser, host_factor,
                                          idle_cpu_ms)
 from anyscale_testbed.quota_calibration import MAX_RUNS, CalibrationError
 from anyscale_testbed.quota_for_the_day import CALIBRATION_RUN_S, QuotaForTheDay, parse_robot_cpu
-from anyscale_testbed.slow_host import (SlowDayMode, check_factor, describe, emulated_host,
-                                        mode_world_args, slow_day_mode)
-from anyscale_testbed.testbed_figures import colour_violations
+from anyscale_testbed.scale_set import (MODEL_FILES, SERVER_CPU_CORES, THREE_SCALES,
+                                        bed_layout, check_server_cpu, fit_problem, model_problem,
+                                        parse_scales, quota_words, scale_cores,
+                                        slow_day_server_cores)
+from anyscale_testbed.slow_host import check_factor, describe, emulated_host, slow_day_mode
 from anyscale_testbed.testbed_record import (TestbedRecord, mark_interrupted,
                                              store_cpu_normalisation)
-from anyscale_testbed.testbed_session import (LoopbackBed, NamespaceBed, TestbedSession,
-                                              layout_with_cpu)
-from anyscale_testbed.two_scale_testbed import (CFS_PERIOD_US, WORLD_NICE, TwoScaleError,
-                                                missing_capabilities)
-from anyscale_nav_demo.goal_sequence import loop_from_goal
+from anyscale_testbed.testbed_session import LoopbackBed, NamespaceBed, TestbedSession
+from anyscale_testbed.two_scale_testbed import CFS_PERIOD_US, TwoScaleError, missing_capabilities
 
-PREFIX = "[testbed] "
 # --normalise-cpu: the quotas stay as calibrated this long after the bed is up. The robot's
 # node set takes 15-17 s to come up under its quota, and the workload measures the host as its
 # nodes load it (host_speed.HostSpeedMonitor).
 NORMALISE_SETTLE_S = 30.0
-# The decision node's link map in each run's directory: loaded at its start, saved during it.
-LINK_MAP = "link_map.yaml"
-# The end table marks a silence longer than its tolerance with the word VIOLATION; on a
-# terminal its line is red as well (the log file keeps the plain word). NO_COLOR turns it off.
-COLOUR = sys.stdout.isatty() and "NO_COLOR" not in os.environ
-
-
-def world_start(world: str, start_goal=None, loops: int = 1):
-    """(x, y, yaw) where the robot starts, and navigation's goals: the world's start and None
-    (navigation reads the world's goals itself), or with `start_goal` K, goal K's pose and the
-    loop from there; with `loops` > 1 the goals repeated that many times."""
-    path = nav_demo_path("maps", f"{world}_world.yaml")
-    try:
-        with open(path) as f:
-            world_file = yaml.safe_load(f)
-        start = [float(v) for v in world_file["start"]]
-        goals = [[float(v) for v in g] for g in world_file["goals"]]
-    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as e:
-        sys.exit(f"run_testbed: --world {world}: cannot read the start pose and goals from "
-                 f"{path}: {e}")
-    if start_goal is None:
-        return start, (goals * loops if loops > 1 else None)
-    try:
-        start, loop = loop_from_goal(goals, start_goal)
-    except ValueError as e:
-        sys.exit(f"run_testbed: --start-goal: {world}'s {e}")
-    return list(start), [list(g) for g in loop] * loops
 
 
 def parse_args(argv, default_out: str):
@@ -109,6 +82,16 @@ def parse_args(argv, default_out: str):
                         "next run can be given it")
     p.add_argument("--laptop-cpu", type=float, default=None, metavar="CORES",
                    help="laptop CPU quota (default: the calibration file's)")
+    p.add_argument("--scales", default="robot,laptop", metavar="LIST",
+                   help="robot,laptop (default), or robot,laptop,server: a server behind the "
+                        "WiFi's access point on a 100 Mbit/s wired segment, with its agent in "
+                        "its own namespace and CPU quota (--server-cpu), and anyscale_nav_demo's "
+                        f"config/{MODEL_FILES[THREE_SCALES]} unless --model "
+                        "(anyscale_testbed/access_point_layout.py)")
+    p.add_argument("--server-cpu", type=float, default=None, metavar="CORES",
+                   help=f"--scales ...,server: the server's CPU quota (default "
+                        f"{SERVER_CPU_CORES:g}, 1.5 x the robot's calibrated quota as in the "
+                        "model; all quotas together must leave the world 0.2 cores of this host)")
     p.add_argument("--normalise-cpu", action="store_true",
                    help="scale both CPU quotas with the host's speed: every run times a fixed "
                         "workload (anyscale_testbed/host_speed.py) every 5 s and records its "
@@ -199,6 +182,11 @@ def parse_args(argv, default_out: str):
         p.error(f"--schedule: expected [[t_s, Mbit/s], ...], got {args.schedule!r}")
     if args.seed < 0:
         p.error(f"--seed: expected an integer >= 0, got {args.seed}")
+    try:
+        args.scales = parse_scales(args.scales)
+        check_server_cpu(args.server_cpu, args.scales)
+    except ValueError as e:
+        p.error(str(e))
     if args.weak_link_mbps is not None and not 0 <= args.weak_link_mbps < 1000:
         p.error(f"--weak-link-mbps: expected 0 or more Mbit/s, got {args.weak_link_mbps:g}")
     if args.late_boost_fraction is not None and not 0 <= args.late_boost_fraction <= 1:
@@ -251,8 +239,15 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
     """One run; `default_out` is where --out defaults to (the caller's results/testbed),
     `run_testbed` the script that runs this (--robot-cpu auto runs it for its calibration)."""
     args = parse_args(argv, default_out)
-    model = args.model or nav_demo_path("config", "testbed.yaml")
+    model = args.model or nav_demo_path("config", MODEL_FILES[args.scales])
     robot_cpu, laptop_cpu = quota_cores(args.robot_cpu, args.laptop_cpu)
+    server_cpu = None               # two scales
+    if args.scales == THREE_SCALES:
+        server_cpu = SERVER_CPU_CORES if args.server_cpu is None else args.server_cpu
+        problem = model_problem(model, args.scales)
+        if problem:
+            print(f"run_testbed: {problem}", file=sys.stderr)
+            return 2
     reference_ms = args.reference_cpu_ms
     if args.normalise_cpu and reference_ms is None and not args.calibrate_robot_cpu:
         reference_ms = calibrated_reference_ms(nav_demo_path("config",
@@ -295,16 +290,26 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
     if factor > 1 and not loopback:
         mode = slow_day_mode(factor, robot_cpu, laptop_cpu, read_calibration())
         robot_cpu, laptop_cpu = mode.robot_cores, mode.laptop_cores
+        if server_cpu is not None:
+            server_cpu = slow_day_server_cores(server_cpu, factor)
         print(PREFIX + describe(mode))
     emulated = None
     if args.emulate_slow_host > 1 and not loopback:
         emulated = emulated_host(args.emulate_slow_host, robot_cpu, laptop_cpu, os.cpu_count())
         robot_cpu, laptop_cpu = emulated.robot_cores, emulated.laptop_cores
+        if server_cpu is not None:
+            server_cpu /= emulated.slowdown
         print(PREFIX + f"EMULATING a host {emulated.slowdown:g} x slower than this one: the "
               f"quotas divided by {emulated.slowdown:g}, "
               f"the world in {emulated.world_cores:.3f} cores")
+    cores = scale_cores(robot_cpu, laptop_cpu, server_cpu)
+    # Two scales fitted this host by calibration; a third quota may not (scale_set.fit_problem).
+    unfit = fit_problem(cores, os.cpu_count() or 1) if server_cpu and not loopback else ""
+    if unfit:
+        print(f"run_testbed: {unfit}", file=sys.stderr)
+        return 2
     bed = LoopbackBed() if loopback else NamespaceBed(
-        layout_with_cpu(robot_cpu, laptop_cpu), cfs_period_us=int(args.cfs_period_ms * 1000),
+        bed_layout(cores, link), cfs_period_us=int(args.cfs_period_ms * 1000),
         world_cores=emulated.world_cores if emulated else 0.0)
     normaliser = None
     if not loopback:
@@ -312,14 +317,13 @@ def main(default_out: str, run_testbed: str, argv=None) -> int:
         # is the reference of the runs at its quota); only --normalise-cpu moves the quotas.
         # The groups exist once the bed is entered; the normaliser is entered after it and left
         # before it, so it never writes to a group the teardown is removing.
-        normaliser = CpuNormaliser(bed.quotas, {"robot": robot_cpu, "laptop": laptop_cpu},
+        normaliser = CpuNormaliser(bed.quotas, cores,
                                    reference_ms, settle_s=NORMALISE_SETTLE_S,
                                    follow=args.normalise_cpu and reference_ms is not None,
                                    log=lambda line: print(PREFIX + line, flush=True))
     following = normaliser is not None and normaliser.follow
     print(PREFIX + f"world {args.world}, link {link}" + (f" seed {args.seed}" if seed else "")
-          + ("" if loopback else f", CPU quota robot {robot_cpu:g} / laptop {laptop_cpu:g} cores"
-                                 f" per {args.cfs_period_ms:g} ms period")
+          + ("" if loopback else f", {quota_words(cores)} per {args.cfs_period_ms:g} ms period")
           + (f" at the host speed of the calibration ({reference_ms:g} ms workload), "
              "normalised every 5 s" if following else "")
           + f"; logs and results in {run_dir}")
@@ -424,17 +428,6 @@ def read_calibration() -> dict:
         sys.exit(f"run_testbed: {path}: {e}")
 
 
-def write_calibration(run_dir: str, mode: SlowDayMode) -> str:
-    """The slow-day mode's calibration file, written into run_dir; returns its path."""
-    path = os.path.join(run_dir, "calibration_host_factor.yaml")
-    os.makedirs(run_dir, exist_ok=True)
-    with open(path, "w") as f:
-        f.write(f"# testbed_calibration.yaml for a host {mode.factor:.2f} x slower than the "
-                "reference day (run_testbed.py --host-factor)\n")
-        yaml.safe_dump(mode.calibration, f, sort_keys=False)
-    return path
-
-
 def normaliser_state(normaliser: CpuNormaliser) -> str:
     quotas = ", ".join(f"{scale} {cores:.3f}" for scale, cores in normaliser.cores.items())
     return (f"host speed: CPU quota {quotas or 'none'} cores, as calibrated, until the nodes "
@@ -442,75 +435,5 @@ def normaliser_state(normaliser: CpuNormaliser) -> str:
             f"CPU ms (calibrated at {normaliser.reference_cpu_ms:g} ms)")
 
 
-def robot_launch_args(args) -> List[str]:
-    """robot.launch's holds after a link loss, late boost, weak link, link forecast and learning
-    that the run's options set (none: its own)."""
-    out = []
-    if args.late_boost_fraction is not None:
-        out.append(f"late_boost_fraction:={args.late_boost_fraction:g}")
-    if args.hold_after_loss is not None:
-        out.append(f"hold_after_loss_s:={args.hold_after_loss}")
-    if args.amcl_hold_after_loss is not None:
-        out.append(f"node_hold_after_loss_s:={{amcl: {args.amcl_hold_after_loss}}}")
-    if args.model_costs:
-        out.append("learn_costs:=false")
-    if getattr(args, "weak_link_mbps", None) is not None:
-        out.append(f"weak_link_mbps:={args.weak_link_mbps:g}")
-    # The link map assumes that the link follows the robot's place, as coverage does; a
-    # scheduled link follows the clock, and what a map learned of it would mislead.
-    if getattr(args, "no_forecast", False) or getattr(args, "link", "coverage") != "coverage":
-        out.append("link_forecast:=false")
-    return out
-
-
-def launch_demo(session: TestbedSession, bed, args, model: str, start, goals, record: str,
-                run_dir: str, link: str, master_running: bool = False, respawn: bool = False,
-                echo=None, record_critical: bool = False, mode: Optional[SlowDayMode] = None):
-    """The demo's three launches on the bed: the world on the robot's side outside its CPU
-    quota (it brings up the master unless `master_running`), robot.launch and laptop.launch.
-    `args` are parse_args' (world, schedule, seed, duration, rviz, allocator, hysteresis,
-    hold_after_loss, amcl_hold_after_loss, cold_start); `respawn`: roslaunch starts the agents
-    and the decision node again when they end (the fault soak); `echo` gets each line of the
-    world launch (default: the monitor's lines and errors to the console); `record_critical`:
-    the monitor records the critical connections' topics too; `mode`: the slow-day mode's
-    world and calibration (written into run_dir). Returns the world launch's process: the run
-    ends with it."""
-    x, y, yaw = start
-    warm = str(not args.cold_start).lower()
-    world = session.roslaunch(
-        "robot", "world", [
-            "anyscale_testbed", "testbed_world.launch", f"world:={args.world}",
-            f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}", f"link:={link}",
-            f"schedule:={json.dumps(yaml.safe_load(args.schedule))}",
-            f"seed:={args.seed}",
-            f"record_path:={record}", f"results_dir:={os.path.join(run_dir, 'nav')}",
-            f"duration_s:={args.duration}", f"rviz:={str(args.rviz).lower()}",
-            f"record_critical:={str(record_critical).lower()}",
-            f"record_inputs:={json.dumps(args.record_inputs)}"]
-        + [f"{k}:={v}" for k, v in (mode_world_args(mode) if mode else {}).items()],
-        cpu_quota=False, wait_for_master=master_running, echo=echo or echo_monitor_lines,
-        nice=WORLD_NICE)
-    # The world launch runs the simulator and the recorder outside the robot's quota.
-    session.roslaunch("robot", "robot", [
-        "anyscale_nav_demo", "robot.launch", "sim:=false", "record:=false",
-        f"world:={args.world}", f"x:={x}", f"y:={y}", f"yaw:={yaw}", f"model:={model}",
-        f"allocator:={args.allocator}", f"hysteresis_s:={args.hysteresis}",
-        f"uplink_interface:={bed.uplink_interface('robot')}", f"warm_start:={warm}",
-        f"respawn:={str(respawn).lower()}", f"link_map_file:={os.path.join(run_dir, LINK_MAP)}",
-        f"learned_costs_out:={os.path.join(run_dir, LEARNED_COSTS)}"]
-        + ([f"goals:={json.dumps(goals)}"] if goals else [])
-        + ([f"calibration:={write_calibration(run_dir, mode)}"] if mode else [])
-        + robot_launch_args(args))
-    session.roslaunch("laptop", "laptop", [
-        "anyscale_nav_demo", "laptop.launch", f"model:={model}", f"warm_start:={warm}",
-        f"respawn:={str(respawn).lower()}"])
-    return world
-
-
 def raise_interrupt(*_):
     raise KeyboardInterrupt
-
-
-def echo_monitor_lines(line: str):
-    if line.startswith(PREFIX) or "[ERROR]" in line or "[FATAL]" in line:
-        print(colour_violations(line, COLOUR), flush=True)

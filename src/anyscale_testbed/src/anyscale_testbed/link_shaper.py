@@ -271,9 +271,12 @@ SHAPER_PARAMS = (
           minimum=0),
     Param("robot_namespace", TwoScaleLayout().robot.namespace, "the robot's netns", kind="name"),
     Param("robot_interface", TwoScaleLayout().robot.interface, "its veth end", kind="name"),
-    Param("laptop_namespace", TwoScaleLayout().laptop.namespace, "the laptop's netns",
+    # The WiFi veth's far end: the laptop's on two scales, the access point's on three
+    # (access_point_layout.py; testbed_world.launch's wifi_peer_* args).
+    Param("laptop_namespace", TwoScaleLayout().laptop.namespace,
+          "the netns of the WiFi veth's far end", kind="name"),
+    Param("laptop_interface", TwoScaleLayout().laptop.interface, "that end's interface",
           kind="name"),
-    Param("laptop_interface", TwoScaleLayout().laptop.interface, "its veth end", kind="name"),
     Param("map_file", "", "coverage mode: the floor plan's map YAML; empty: from /map",
           kind="raw"),
 )

@@ -14,6 +14,7 @@ from anyscale_core.profile_plan import SATURATED_PERCENT
 from .cost_figures import cost_lines
 from .premise_figures import (EVERY_NODE_HOME, PREMISE_AMCL_HZ, START_UP_S, premise_figures,
                               premise_off_note)
+from .scale_times import scale_time_lines
 from .testbed_record import (LINK_AHEAD_RETURN, LINK_LOSS_RETURN, OTHER_RETURN, EventRecord,
                              ProcessSample, TestbedRecord, Violation, kind_of_move, mapping_at)
 
@@ -87,24 +88,26 @@ def pose_errors(truth: Sequence[Tuple[float, float, float]],
 HANDOVER_S = 5.0
 
 
-def handover_windows(events: Sequence[EventRecord]) -> Dict[str, List[Tuple[float, float]]]:
-    """node -> (start, end) of each planned move's overlap. A return forced by a link loss has
-    none: its old instance could not be reached, and its lease ends it."""
+def handover_windows(events: Sequence[EventRecord], overlap_s: float = HANDOVER_S
+                     ) -> Dict[str, List[Tuple[float, float]]]:
+    """node -> (start, end) of each planned move's overlap, up to overlap_s past the new
+    instance's registration (a slower host takes longer to its first outputs). A return forced
+    by a link loss has none: its old instance could not be reached, and its lease ends it."""
     out: Dict[str, List[Tuple[float, float]]] = {}
     for e in events:
         if e.kind in ("migrate", "migrate_back") and not e.reason.startswith("link to"):
             registered = e.duration_s if math.isfinite(e.duration_s) else 0.0
             out.setdefault(e.node, []).append(
-                (e.decided_t, e.decided_t + registered + HANDOVER_S))
+                (e.decided_t, e.decided_t + registered + overlap_s))
     return out
 
 
 def duplicate_instances(samples: Sequence[ProcessSample], nodes: Sequence[str],
-                        events: Sequence[EventRecord] = ()):
+                        events: Sequence[EventRecord] = (), overlap_s: float = HANDOVER_S):
     """Samples where a node had more than one live process while the link was up, i.e. where
     two instances could both have been publishing, outside the overlap of a planned move
     among `events`: [(t, node, namespaces)]."""
-    windows = handover_windows(events)
+    windows = handover_windows(events, overlap_s)
     return [(s.t, n, s.instances.get(n, [])) for s in samples if s.link_up
             for n in nodes if len(s.instances.get(n, [])) > 1
             and not any(a <= s.t <= b for a, b in windows.get(n, []))]
@@ -377,6 +380,7 @@ def format_summary(rec: TestbedRecord, outputs: Dict[str, str],
         lines.append(f"AMCL position error vs ground truth: RMS {np.sqrt(np.mean(errors**2)):.3f}"
                      f" m, max {errors.max():.3f} m over {errors.size} poses")
     lines += premise_lines(rec)
+    lines += scale_time_lines(rec, end)
     lines += cost_lines(rec)
     if rec.bandwidth:
         up = np.array([b > 0 for _, b in rec.bandwidth])

@@ -20,6 +20,7 @@ import rosgraph
 import rospy
 from anyscale_msgs.msg import Mapping as MappingMsg
 from anyscale_msgs.msg import CostEstimates, MigrationEvent, ScaleStatus
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from nav_msgs.msg import Odometry
 from std_msgs.msg import Float32, String
@@ -31,8 +32,8 @@ from anyscale_core.ros_convert import EVENT_NAMES
 
 from .proc_census import is_standby_comm
 from .testbed_figures import colour_violations, format_summary, tolerance_violations
-from .testbed_record import (DECISION_PARAMS, EventRecord, ProcessSample, TestbedRecord,
-                             save_record)
+from .testbed_record import (DECISION_PARAMS, LINK_AHEAD_STATUS, EventRecord, ProcessSample,
+                             TestbedRecord, save_record)
 
 
 def say(line: str):
@@ -67,6 +68,8 @@ def node_processes(instances: Dict[str, str], master_uri: str,
             comm, state = stat.split(b"(", 1)[1].rsplit(b")", 1)
             if state.split()[0] == b"Z" or is_standby_comm(comm):
                 continue            # a zombie or a standby publishes nothing
+            if _same_command_line(int(state.split()[1]), args):
+                continue            # an agent's child between its fork and its exec
             if state.split()[0] == b"T":
                 if paused is not None:
                     paused.update(a.decode()[len("__name:="):] for a in args if a in wanted)
@@ -82,6 +85,16 @@ def node_processes(instances: Dict[str, str], master_uri: str,
     return found
 
 
+def _same_command_line(pid: int, args: List[bytes]) -> bool:
+    """Whether process `pid` runs the command line `args`: a child that has it too is a fork
+    not yet exec'd (the fault soak counted one as a second robot agent, sampled once)."""
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            return f.read().split(b"\0") == args
+    except OSError:
+        return False
+
+
 class TestbedMonitor:
     def __init__(self):
         model_path = rospy.get_param("~model")
@@ -90,7 +103,9 @@ class TestbedMonitor:
         self.duration_s = float(rospy.get_param("~duration_s", 0.0))
         self.exit_when_done = bool(rospy.get_param("~exit_when_done", True))
         self.rec = TestbedRecord(started_wall=time.time(), world=rospy.get_param("~world", ""),
-                                 link=rospy.get_param("~link", ""))
+                                 link=rospy.get_param("~link", ""),
+                                 scales=[self.model.master.name] + [
+                                     s.name for s in self.model.remote_scales])
         self.decision_params_read = False
         self.lock = threading.Lock()
         self.link_up = True
@@ -150,6 +165,7 @@ class TestbedMonitor:
                          queue_size=10)
         rospy.Subscriber("/anyscale/status", ScaleStatus, self._on_scale_status, queue_size=10)
         rospy.Subscriber("/anyscale/cost_estimates", CostEstimates, self._on_costs, queue_size=1)
+        rospy.Subscriber("/diagnostics", DiagnosticArray, self._on_diagnostics, queue_size=10)
         rospy.Subscriber(rospy.get_param("~ground_truth_topic", "/sim/ground_truth"), Odometry,
                          self._on_truth, queue_size=20)
         rospy.Subscriber(rospy.get_param("~status_topic", "/navigation/status"), String,
@@ -247,6 +263,18 @@ class TestbedMonitor:
                  for c in msg.estimates]
         with self.lock:
             self.rec.cost_estimates = costs
+
+    def _on_diagnostics(self, msg):
+        """The decision node's "link ahead" status, kept where it changes: what the forecast
+        made the engine do (a node held home makes no event) and whether there was one."""
+        for status in msg.status:
+            if not status.name.endswith(LINK_AHEAD_STATUS):
+                continue
+            available = any(not kv.value.startswith("no forecast") for kv in status.values)
+            note = (status.message, available)
+            with self.lock:
+                if not self.rec.link_ahead or tuple(self.rec.link_ahead[-1][1:]) != note:
+                    self.rec.link_ahead.append((self.now(),) + note)
 
     def _on_truth(self, msg):
         p, t = msg.pose.pose.position, msg.header.stamp.to_sec() - self.rec.started_wall

@@ -19,6 +19,8 @@ DECISION_PARAMS = ("hysteresis_s", "bandwidth_hold_s", "weak_link_mbps", "hold_a
 MOVE_OUT, LINK_LOSS_RETURN, LINK_AHEAD_RETURN, OTHER_RETURN = (
     "move out", "link-loss return", "planned return (link ahead)", "other return")
 MOVE_KINDS = (MOVE_OUT, LINK_LOSS_RETURN, LINK_AHEAD_RETURN, OTHER_RETURN)
+# The decision node's diagnostic status of the link forecast ("<node>: link ahead").
+LINK_AHEAD_STATUS = "link ahead"
 
 
 @dataclass
@@ -113,6 +115,12 @@ class TestbedRecord:
     # the estimate when last learned there and from how many reports, whether that is a lower
     # bound, returns for rate or CPU in a row. Empty in older records.
     cost_estimates: List[Dict[str, object]] = field(default_factory=list)
+    # The model's scales, master first (the monitor's ~model): the end table's time per scale
+    # is shown on three or more (scale_times.py). Empty in older records.
+    scales: List[str] = field(default_factory=list)
+    # The decision node's "link ahead" diagnostics where they changed: (t, its summary, whether
+    # some remote scale had a forecast). Empty in older records.
+    link_ahead: List[Tuple[float, str, bool]] = field(default_factory=list)
 
     def save(self, path: str):
         with open(path, "w") as f:

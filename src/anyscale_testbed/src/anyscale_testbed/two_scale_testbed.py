@@ -2,6 +2,9 @@
 by a veth pair, the link shaped with tc tbf and taken down/up, each scale's CPU held by a cgroup
 v1 quota. Every command is an argv list (no shell); teardown is idempotent, never raises, and
 leaves no namespace, veth, cgroup or process behind, or names in one line what it could not remove.
+TwoScaleTestbed sets up the three-scale layout too (access_point_layout.py: robot, laptop and
+server behind an access point): a layout gives it its ends, namespaces, interfaces, WiFi link
+and setup commands.
 
 iproute2 and the cgroup filesystem are driven directly rather than through a library: pyroute2
 is not packaged for Debian's Python here, and these are a handful of well-known commands.
@@ -49,15 +52,39 @@ class ScaleEnd:
     cpu_cores: float       # cgroup quota in cores; 0 = no quota
 
 
+# The default beds' namespaces, two scales and three (access_point_layout.py): both take the
+# robot's lock (claim_layout), so a run of either removes what a killed run of the other left.
+DEFAULT_ROBOT_NAMESPACE = "anyscale_robot"
+DEFAULT_AP_NAMESPACE, DEFAULT_SERVER_NAMESPACE = "anyscale_ap", "anyscale_server"
+DEFAULT_BED_NAMESPACES = (DEFAULT_ROBOT_NAMESPACE, "anyscale_laptop", DEFAULT_AP_NAMESPACE,
+                          DEFAULT_SERVER_NAMESPACE)
+
+
 @dataclass(frozen=True)
 class TwoScaleLayout:
-    robot: ScaleEnd = ScaleEnd("robot", "anyscale_robot", "asv_robot", "10.213.7.1", 0.0)
+    robot: ScaleEnd = ScaleEnd("robot", DEFAULT_ROBOT_NAMESPACE, "asv_robot", "10.213.7.1", 0.0)
     laptop: ScaleEnd = ScaleEnd("laptop", "anyscale_laptop", "asv_laptop", "10.213.7.2", 0.0)
     prefix_len: int = 24
 
     @property
     def ends(self) -> Sequence[ScaleEnd]:
         return (self.robot, self.laptop)
+
+    @property
+    def namespaces(self) -> Sequence[str]:
+        return tuple(end.namespace for end in self.ends)
+
+    @property
+    def interfaces(self) -> Sequence[str]:
+        return tuple(end.interface for end in self.ends)
+
+    @property
+    def wifi_link(self) -> "TwoScaleLayout":
+        """The link the WiFi model shapes: here the one veth, both of its ends."""
+        return self
+
+    def setup_commands(self) -> List[List[str]]:
+        return setup_commands(self)
 
 
 def process_layout(tag: str, subnet: str, pid: Optional[int] = None) -> TwoScaleLayout:
@@ -224,7 +251,9 @@ class TwoScaleTestbed:
     (SIGINT, then SIGKILL) on teardown.
 
     `world_cores` (an emulated slower host, slow_host.py): the processes started outside the
-    scales' quotas go into a CPU group `PREFIX_world` of that many cores instead."""
+    scales' quotas go into a CPU group `PREFIX_world` of that many cores instead.
+
+    `layout`: a TwoScaleLayout, or access_point_layout.AccessPointLayout (three scales)."""
 
     def __init__(self, layout: TwoScaleLayout = TwoScaleLayout(), cgroup_prefix: str = "anyscale",
                  cfs_period_us: int = CFS_PERIOD_US, world_cores: float = 0.0):
@@ -243,12 +272,12 @@ class TwoScaleTestbed:
 
     def __enter__(self) -> "TwoScaleTestbed":
         self._lock = claim_layout(self.layout)
-        left = self.teardown()     # leftovers of an earlier run that was killed
+        left = self.teardown(stale=leftover_namespaces(self.layout))  # of a run killed earlier
         if left:
             self._lock.close()
             raise TwoScaleError("cannot set up: an earlier run left " + "; ".join(left))
         try:
-            for argv in setup_commands(self.layout):
+            for argv in self.layout.setup_commands():
                 run(argv)
             for quota in self.cpu_groups():
                 quota.create()
@@ -270,11 +299,12 @@ class TwoScaleTestbed:
         return next(e for e in self.layout.ends if e.scale == scale)
 
     def shape(self, mbps: float, burst_kbit: int = 32):
-        for argv in shape_commands(self.layout, mbps, burst_kbit):
+        """The WiFi link's rate (the veth; on three scales the robot's hop to the AP)."""
+        for argv in shape_commands(self.layout.wifi_link, mbps, burst_kbit):
             run(argv)
 
     def set_link(self, up: bool):
-        for argv in link_commands(self.layout, up):
+        for argv in link_commands(self.layout.wifi_link, up):
             run(argv)
 
     def start(self, scale: str, argv: List[str], env: Optional[Dict[str, str]] = None,
@@ -298,26 +328,32 @@ class TwoScaleTestbed:
         self.processes.append(proc)
         return proc
 
-    def teardown(self, grace_s: float = 5.0) -> List[str]:
-        """Ends every process, then removes the namespaces, the veth and the CPU groups. Never
-        raises: returns what it could not remove, in words (empty when nothing is left).
-        Safe to call again."""
+    def teardown(self, grace_s: float = 5.0, stale: Sequence[str] = ()) -> List[str]:
+        """Ends every process, then removes the namespaces (the layout's and `stale`), the veth
+        and the CPU groups. Never raises: returns what it could not remove, in words (empty
+        when nothing is left). Safe to call again."""
         left: List[str] = []
         with signals_deferred():
             attempt(left, "stopping processes",
                     lambda: left.extend(stop_process_groups(self.processes, grace_s)))
             self.processes.clear()
-            for end in self.layout.ends:
-                attempt(left, f"namespace {end.namespace}",
-                        lambda end=end: left.extend(remove_namespace(end.namespace)))
+            for namespace in dict.fromkeys(tuple(self.layout.namespaces) + tuple(stale)):
+                attempt(left, f"namespace {namespace}",
+                        lambda ns=namespace: left.extend(remove_namespace(ns)))
             # A setup that failed before moving the veth's ends leaves them here, outside the
             # namespaces, where deleting those does not remove them.
-            attempt(left, "veth", lambda: left.extend(
-                remove_veths([end.interface for end in self.layout.ends])))
+            attempt(left, "veth", lambda: left.extend(remove_veths(list(self.layout.interfaces))))
             for quota in self.cpu_groups():
                 attempt(left, f"cgroup {quota.path}",
                         lambda quota=quota: left.extend(filter(None, [quota.remove()])))
         return left
+
+
+def leftover_namespaces(layout) -> Sequence[str]:
+    """What a bed removes before it sets up besides its own namespaces: on the default robot
+    namespace, every default bed's (a killed three-scale run leaves its access point and
+    server); none for a layout of its own (process_layout)."""
+    return DEFAULT_BED_NAMESPACES if layout.robot.namespace == DEFAULT_ROBOT_NAMESPACE else ()
 
 
 def report_leftovers(left: List[str], block_failed: bool):

@@ -38,20 +38,41 @@ def test_counts_processes_of_this_master_by_their_node_name(tmp_path):
     assert node_processes(NODE, MASTER)["census_node"] == []
 
 
-def test_a_fork_not_yet_execd_is_no_second_instance():
-    # An agent's child between its fork and its exec carries the agent's command line.
-    forker = [sys.executable, "-c",
-              "import os, time\nif os.fork() == 0:\n    time.sleep(30)\nelse:\n    time.sleep(30)"]
-    parent = spawn(forker + ["__name:=census_node"])
-    try:
-        assert wait_for(lambda: len(children(parent.pid)) == 1)
-        assert node_processes(NODE, MASTER)["census_node"] == [
-            os.readlink(f"/proc/{parent.pid}/ns/net")]
-    finally:
-        for child in children(parent.pid):
+FORKER = """
+import ctypes, os, sys, time
+if os.fork() != 0 and sys.argv[1] == "standby":
+    ctypes.CDLL(None).prctl(15, ctypes.c_char_p(b"standby:census"), 0, 0, 0)
+time.sleep(30)
+"""
+
+
+def forked(kind):
+    """A process of census_node that forks once: `copy` as an agent does before its exec, or
+    `standby` as warm_restart does (the parent renames itself, the child is the node). Returns
+    (parent, child pid)."""
+    parent = spawn([sys.executable, "-c", FORKER, kind, "__name:=census_node"])
+    assert wait_for(lambda: len(children(parent.pid)) == 1)
+    return parent, children(parent.pid)[0]
+
+
+def net(pid):
+    return os.readlink(f"/proc/{pid}/ns/net")
+
+
+def test_a_fork_not_yet_execd_is_no_second_instance_but_a_standbys_node_is_one():
+    for kind in ("copy", "standby"):
+        parent, child = forked(kind)
+        try:
+            if kind == "standby":
+                assert wait_for(lambda: open(f"/proc/{parent.pid}/comm").read().startswith(
+                    "standby:"))
+            pids = {}
+            assert node_processes(NODE, MASTER, pids=pids)["census_node"] == [net(parent.pid)]
+            assert pids["census_node"] == [parent.pid if kind == "copy" else child], kind
+        finally:
             os.kill(child, signal.SIGKILL)
-        parent.kill()
-        parent.wait()
+            parent.kill()
+            parent.wait()
 
 
 def children(pid):

@@ -68,7 +68,7 @@ def node_processes(instances: Dict[str, str], master_uri: str,
             comm, state = stat.split(b"(", 1)[1].rsplit(b")", 1)
             if state.split()[0] == b"Z" or is_standby_comm(comm):
                 continue            # a zombie or a standby publishes nothing
-            if _same_command_line(int(state.split()[1]), args):
+            if _is_fork_of(int(state.split()[1]), args, comm):
                 continue            # an agent's child between its fork and its exec
             if state.split()[0] == b"T":
                 if paused is not None:
@@ -85,12 +85,16 @@ def node_processes(instances: Dict[str, str], master_uri: str,
     return found
 
 
-def _same_command_line(pid: int, args: List[bytes]) -> bool:
-    """Whether process `pid` runs the command line `args`: a child that has it too is a fork
-    not yet exec'd (the fault soak counted one as a second robot agent, sampled once)."""
+def _is_fork_of(parent: int, args: List[bytes], comm: bytes) -> bool:
+    """Whether a process with this command line and comm is a fork of `parent` not yet exec'd:
+    the parent has both too (the fault soak counted an agent's child as a second robot agent,
+    sampled once). A warm standby's child is its node: the standby has renamed itself."""
     try:
-        with open(f"/proc/{pid}/cmdline", "rb") as f:
-            return f.read().split(b"\0") == args
+        with open(f"/proc/{parent}/cmdline", "rb") as f:
+            if f.read().split(b"\0") != args:
+                return False
+        with open(f"/proc/{parent}/stat", "rb") as f:
+            return f.read().split(b"(", 1)[1].rsplit(b")", 1)[0] == comm
     except OSError:
         return False
 

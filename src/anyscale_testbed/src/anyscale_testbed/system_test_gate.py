@@ -14,9 +14,11 @@ from .host_speed import REFERENCE_IDLE_MS, host_factor
 NOT_RUN = "SYSTEM TEST NOT RUN: "
 REQUIRE_ENV = "ANYSCALE_REQUIRE_SYSTEM_TESTS"
 EMULATE_ENV = "ANYSCALE_EMULATED_HOST_FACTOR"
-# The slowest host the slow-day mode was validated for, as a factor of the reference day
+# The slowest host the slow-day mode was validated for, as a factor of the reference day: the
+# fixed-quota system tests pass on an emulated host 3 x slower and fail at 4.5 x, where a node's
+# own start-up, which the mode cannot scale, outlasts its Δ
 # (docs/measurements/2026-11-28-slow-host.md).
-MAX_HOST_FACTOR = 6.0
+MAX_HOST_FACTOR = 3.0
 
 
 def required(env: Mapping[str, str]) -> bool:

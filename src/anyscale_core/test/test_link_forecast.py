@@ -12,9 +12,10 @@ T0 = 1_800_000_000.0
 STRAIGHT = [(float(x), 0.5) for x in range(0, 41)]     # along y = 0.5, x 0..40 m
 
 
-def corridor(hole=(10, 14), unknown=(), mbps=20.0):
-    """Cells x = 0..39 on row 0: `mbps`, the link lost in `hole`, no observation in `unknown`."""
-    m = LinkMap(LinkMapParams(min_observations=3))
+def corridor(hole=(10, 14), unknown=(), mbps=20.0, margin=0):
+    """Cells x = 0..39 on row 0: `mbps`, the link lost in `hole`, no observation in `unknown`;
+    `margin`: the map's hole_margin_cells (0: the stretches' own figures alone)."""
+    m = LinkMap(LinkMapParams(min_observations=3, hole_margin_cells=margin))
     for x in range(40):
         if x in unknown:
             continue
@@ -196,9 +197,22 @@ def test_one_loss_among_a_cells_observations_makes_it_a_hole():
             m.add("laptop", T0 + 10 + k, 6.5, 0.5, 20.0, False)
         m.add("laptop", T0 + 20, 6.5, 0.5, math.nan, True)      # 1 of 12 observations lost
         return m
-    fc = ahead(blip(LinkMapParams(min_observations=3)), 2.2)
+    fc = ahead(blip(LinkMapParams(min_observations=3, hole_margin_cells=0)), 2.2)
     assert fc.stretches[4].stats.low_mbps == 20.0               # the quantile does not see it
     assert fc.falls_below(5.0) == (pytest.approx(3.8, abs=1e-3), 0.0)
     assert fc.carries_for_s(5.0, live_mbps=20.0) == pytest.approx(3.8, abs=1e-3)
-    fc = ahead(blip(LinkMapParams(min_observations=3, hole_lost_fraction=0.1)), 2.2)
+    fc = ahead(blip(LinkMapParams(min_observations=3, hole_lost_fraction=0.1,
+                                  hole_margin_cells=0)), 2.2)
     assert fc.falls_below(5.0) is None and fc.carries_for_s(5.0, live_mbps=20.0) == 20.0
+
+
+def test_a_cell_beside_a_hole_clears_no_node_but_foresees_no_fall():
+    """The coverage's edge flickers beside where it was lost before: within hole_margin_cells
+    of a hole the link does not carry (no node skips the reactive rules there), ahead of it and
+    behind it; only the hole itself is a fall foreseen."""
+    fc = ahead(corridor(margin=1), 2.2)                     # the hole at x = 10..13
+    assert fc.carries_for_s(5.0, live_mbps=20.0) == pytest.approx(6.8, abs=1e-3)  # x = 9
+    assert fc.falls_below(5.0) == (pytest.approx(7.8, abs=1e-3), 0.0)
+    assert ahead(corridor(margin=1), 14.5).carries_for_s(5.0, live_mbps=20.0) == 0.0
+    assert ahead(corridor(margin=1), 15.5).carries_for_s(5.0, live_mbps=20.0) == 20.0
+    assert ahead(corridor(margin=2), 15.5).carries_for_s(5.0, live_mbps=20.0) == 0.0

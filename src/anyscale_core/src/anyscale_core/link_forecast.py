@@ -219,6 +219,7 @@ class Stretch:
     end_s: float
     stats: Optional[CellStats]          # None: unknown
     current: bool = False               # the cell the robot is in: judged by the measurement
+    beside_hole: bool = False           # a hole within the map's hole_margin_cells
 
 
 @dataclass(frozen=True)
@@ -239,11 +240,13 @@ class LinkForecast:
         live_mbps (NaN or 0: not measured, or lost), then by the map's figure in each cell
         ahead. A hole does not carry, the current cell neither: what this answers lets a node
         skip the reactive rules, so the cell that just lost the link (at a coverage edge that
-        flickers) does not count as carrying because the link came back for a moment. An unknown
-        cell does not carry, the current one neither: an empty map carries nothing. horizon_s if
-        it carries throughout."""
+        flickers) does not count as carrying because the link came back for a moment, and a cell
+        beside a hole neither: the edge flickers there from lap to lap (two link-loss returns on
+        a lap 2 where lap 1 had none, at 0.2 s losses 0.8 s apart). An unknown cell does not
+        carry, the current one neither: an empty map carries nothing. horizon_s if it carries
+        throughout."""
         for st in self.stretches:
-            ok = st.stats is not None and not self._hole(st.stats) and (
+            ok = st.stats is not None and not self._hole(st.stats) and not st.beside_hole and (
                 live_mbps >= need_mbps if st.current else st.stats.low_mbps >= need_mbps)
             if not ok:
                 return st.start_s
@@ -308,7 +311,8 @@ def forecast_links(link_map: LinkMap, scales: Sequence[str], path: PathTracker,
     out = {}
     for scale in scales:
         out[scale] = LinkForecast(scale, horizon_s, tuple(
-            Stretch(float(a), float(b), link_map.stats(scale, c), k == 0)
+            Stretch(float(a), float(b), link_map.stats(scale, c), k == 0,
+                    link_map.beside_hole(scale, c))
             for k, (c, a, b) in enumerate(zip(cells, starts, ends))), speed_mps,
             link_map.params.hole_lost_fraction)
     return out

@@ -46,6 +46,10 @@ class LinkMapParams:
         0.0, "a cell whose link was lost in more than this share of its observations is a hole "
         "(a blip is one observation of a pass, but it was met on that pass)", "0..1",
         name="link_map_hole_lost_fraction", minimum=0.0, maximum=1.0)
+    hole_margin_cells: int = declared(
+        1, "a cell within this many cells of a hole clears no node to skip the reactive rules "
+        "(a coverage edge flickers from lap to lap, beside where it was lost before)", "cells",
+        name="link_map_hole_margin_cells", minimum=0)
 
 
 @dataclass(frozen=True)
@@ -115,6 +119,17 @@ class LinkMap:
                 low = float(np.quantile(mbps, self.params.quantile, method="lower"))
                 self._stats[key] = CellStats(low, lost / len(kept), len(kept))
         return self._stats[key]
+
+    def is_hole(self, stats: Optional[CellStats]) -> bool:
+        """A known cell whose link was lost in more than hole_lost_fraction of its
+        observations."""
+        return stats is not None and stats.lost_fraction > self.params.hole_lost_fraction
+
+    def beside_hole(self, scale: str, cell: Cell) -> bool:
+        """Whether a hole lies within hole_margin_cells of the cell (the cell itself left out)."""
+        m = self.params.hole_margin_cells
+        return any(self.is_hole(self.stats(scale, (cell[0] + dx, cell[1] + dy)))
+                   for dx in range(-m, m + 1) for dy in range(-m, m + 1) if dx or dy)
 
     def scales(self) -> List[str]:
         return sorted(s for s, cells in self._cells.items() if cells)

@@ -240,11 +240,10 @@ class LinkForecast:
         live_mbps (NaN or 0: not measured, or lost), then by the map's figure in each cell
         ahead. A hole does not carry, the current cell neither: what this answers lets a node
         skip the reactive rules, so the cell that just lost the link (at a coverage edge that
-        flickers) does not count as carrying because the link came back for a moment, and a cell
-        beside a hole neither: the edge flickers there from lap to lap (two link-loss returns on
-        a lap 2 where lap 1 had none, at 0.2 s losses 0.8 s apart). An unknown cell does not
-        carry, the current one neither: an empty map carries nothing. horizon_s if it carries
-        throughout."""
+        flickers) does not count as carrying because the link came back for a moment, nor does
+        a cell within the map's hole_margin_cells of a hole, where the edge flickers from lap to
+        lap (docs/design/decision_node.md). An unknown cell does not carry, the current one
+        neither: an empty map carries nothing. horizon_s if it carries throughout."""
         for st in self.stretches:
             ok = st.stats is not None and not self._hole(st.stats) and not st.beside_hole and (
                 live_mbps >= need_mbps if st.current else st.stats.low_mbps >= need_mbps)

@@ -86,9 +86,9 @@ def node_processes(instances: Dict[str, str], master_uri: str,
 
 
 def _is_fork_of(parent: int, args: List[bytes], comm: bytes) -> bool:
-    """Whether a process with this command line and comm is a fork of `parent` not yet exec'd:
-    the parent has both too (the fault soak counted an agent's child as a second robot agent,
-    sampled once). A warm standby's child is its node: the standby has renamed itself."""
+    """Whether a process with this command line and comm is a fork of `parent` not yet exec'd
+    (an agent's child before its exec): the parent has both too. A warm standby's child is its
+    node: the standby has renamed itself."""
     try:
         with open(f"/proc/{parent}/cmdline", "rb") as f:
             if f.read().split(b"\0") != args:

@@ -1,13 +1,13 @@
 """System test of learning from placements that fail (issue 40) on the two-scale test bed (root:
 network namespaces, tc, cgroups; conftest.py skips without them): a laptop whose CPU quota is too
-small for AMCL at its optimal rate. Without learning, AMCL went out on the model's 36 %, came
-home for its rate and went out again about every T; with it, the decision node learns AMCL's
-cost on the laptop and backs the move off, so AMCL goes out a few times at most, and every Δ
-holds. The link is a fixed good one (scheduled), so no return is the link's doing.
+small for AMCL and AR recognition together at their optimal rates. Without learning, AMCL went
+out on the model's 36 %, came home for its rate and went out again about every T; with it, the
+decision node learns each node's cost on the laptop and backs the move off, so each goes out a
+few times at most, and every Δ holds. The link is a fixed good one (scheduled), so no return is
+the link's doing.
 
-One run of the small loop serves every test here; the laptop's quota is set low enough that
-AMCL cannot reach its rates there, which the first test checks, so that the others test what
-they claim."""
+One run of the small loop serves every test here; the first test checks that the laptop sent a
+node home for its rate or CPU, so that the others test what they claim."""
 import glob
 import os
 import subprocess
@@ -25,11 +25,11 @@ pytestmark = pytest.mark.fixed_cpu_quota
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "..", ".."))
 DURATION_S = 100.0
 HYSTERESIS_S = 10.0
-# A laptop this small cannot give AMCL its optimal rate beside AR recognition (the calibration
-# file's 0.9 cores can on a normal day); one much smaller (0.12) starves the laptop's agent too,
-# whose rate monitor then sees silences that are its own.
+# A laptop this small gives AMCL alone its optimal rate but not beside AR recognition (the
+# calibration file's 0.9 cores do); one much smaller (0.12) starves the laptop's agent too, whose
+# rate monitor then sees silences that are its own.
 LAPTOP_CPU_CORES = 0.3
-MOST_MOVES_OUT = 3          # issue 40: at most 3 moves of AMCL out; one every ~T+10 s would be 5
+MOST_MOVES_OUT = 3          # issue 40: at most 3 moves of a node out; one every ~T+10 s would be 5
 
 
 @pytest.fixture(scope="module")
@@ -49,27 +49,48 @@ def run(tmp_path_factory, slow_host_argv, host_factor):
     return TestbedRecord.load(records[0])
 
 
-def moves_of_amcl(rec, kind):
-    return [e for e in rec.events if e.node == "amcl" and e.kind == kind and e.success]
+OFFLOADED = ("amcl", "ar_recognition")   # the nodes the model lets out to the laptop
 
 
-def test_the_laptop_is_too_small_for_amcl(run):
-    """The premise: AMCL went out and was sent home for its rate or CPU on the laptop at least
-    once (else the run tests nothing)."""
-    returns = [e for e in moves_of_amcl(run, "migrate_back")
+def moves(rec, node, kind):
+    return [e for e in rec.events if e.node == node and e.kind == kind and e.success]
+
+
+def account(rec):
+    """The offloaded nodes' moves, short enough for CI's one-line failure summary."""
+    return [(e.node, round(e.t, 1), e.kind, e.reason[:60]) for e in rec.events
+            if e.node in OFFLOADED and e.kind in ("migrate", "migrate_back")]
+
+
+def test_the_laptop_is_too_small_for_amcl_and_ar_recognition(run):
+    """The premise: a node went out and was sent home for its rate or CPU on the laptop at
+    least once (else the run tests nothing). AMCL alone fits the laptop at its rate; AMCL
+    and AR recognition together do not, so either may be the one sent home."""
+    returns = [e for node in OFFLOADED for e in moves(run, node, "migrate_back")
                if kind_of_move(e) == OTHER_RETURN and not e.reason.startswith("bandwidth")]
-    assert returns, [(e.t, e.kind, e.reason) for e in run.events]
+    assert returns, account(run)
 
 
-def test_amcl_goes_out_a_few_times_at_most(run):
-    out = moves_of_amcl(run, "migrate")
-    assert 1 <= len(out) <= MOST_MOVES_OUT, [(round(e.t, 1), e.reason) for e in out]
+@pytest.mark.parametrize("node", OFFLOADED)
+def test_a_node_goes_out_a_few_times_at_most(run, node):
+    out = moves(run, node, "migrate")
+    assert len(out) <= MOST_MOVES_OUT, account(run)
+
+
+def test_amcl_went_out(run):
+    assert moves(run, "amcl", "migrate"), account(run)
 
 
 def test_the_learned_cost_on_the_laptop_is_above_the_models(run):
+    """Each node sent home for its rate or CPU there is learned to cost more than the model says."""
     assert run.cost_estimates, "no /anyscale/cost_estimates recorded"
-    amcl = [c for c in run.cost_estimates if c["node"] == "amcl" and c["scale"] == "laptop"]
-    assert amcl and amcl[0]["live_percent"] > amcl[0]["model_percent"], run.cost_estimates
+    laptop = {c["node"]: c for c in run.cost_estimates if c["scale"] == "laptop"}
+    sent_home = {e.node for node in OFFLOADED for e in moves(run, node, "migrate_back")
+                 if kind_of_move(e) == OTHER_RETURN}
+    assert sent_home, account(run)
+    for node in sent_home:
+        assert node in laptop and laptop[node]["live_percent"] > laptop[node]["model_percent"], \
+            (node, laptop.get(node))
 
 
 def test_every_output_kept_its_tolerance(run):

@@ -1,5 +1,6 @@
 """The test-bed monitor's /proc census: a node's live processes of this ROS system only, and a
-warm standby is no instance until it is started."""
+warm standby is no instance until it is started; a raw message's header stamp."""
+import io
 import os
 import signal
 import subprocess
@@ -7,7 +8,10 @@ import sys
 
 from anyscale_core.polling import wait_for
 
-from anyscale_testbed.testbed_monitor_ros import node_processes
+import rospy
+from sensor_msgs.msg import JointState
+
+from anyscale_testbed.testbed_monitor_ros import header_stamp, node_processes
 
 STANDBY = os.path.join(os.path.dirname(__file__), "..", "..", "anyscale_agent_cpp", "scripts",
                        "python_standby")
@@ -135,3 +139,12 @@ def test_pids_are_given_in_the_order_of_the_namespaces_and_a_paused_one_has_none
         for p in (ours, remote):
             p.kill()
             p.wait()
+
+
+def test_reads_the_header_stamp_of_a_serialised_message():
+    msg = JointState(name=["left"], position=[1.0])
+    msg.header.seq, msg.header.stamp = 7, rospy.Time(1796187326, 250000000)
+    buff = io.BytesIO()
+    msg.serialize(buff)
+    assert header_stamp(buff.getvalue()) == 1796187326.25
+    assert header_stamp(b"\0" * 8) is None

@@ -4,6 +4,7 @@ run's teardown, in words; which fault a silence is charged to; the worst silence
 fault. soak_invariants.py charges them to the faults with its other invariants.
 
 Every time here is on the record's clock (s since the monitor started)."""
+import statistics
 from typing import List, Optional, Sequence, Tuple
 
 from .testbed_figures import record_end, silence_cause, silences_longer_than, tolerance_violations
@@ -39,8 +40,39 @@ def critical_violations(rec: TestbedRecord) -> List[Violation]:
     for topic, freq_min in sorted(rec.critical_freq_min.items()):
         limit = 1.0 / freq_min + CRITICAL_SLACK_S
         for a, b in silences_longer_than(rec.receipts.get(topic, []), limit, end):
-            found.append(Violation(topic, a, b, b - a, limit, silence_cause(rec, set(), a, b)))
+            words = [w for w in (silence_cause(rec, set(), a, b),
+                                 made_or_delivered(rec, topic, a, b, limit),
+                                 also_silent(rec, topic, a, b)) if w]
+            found.append(Violation(topic, a, b, b - a, limit, "; ".join(words)))
     return found
+
+
+def made_or_delivered(rec: TestbedRecord, topic: str, a: float, b: float, limit: float) -> str:
+    """Whether the messages received at `a` and `b` (a silence's ends) were made as far apart,
+    from their header stamps, in words: "" where the record has no stamps for them."""
+    stamped = dict(map(tuple, rec.stamps.get(topic, [])))
+    if a not in stamped or b not in stamped:
+        return ""
+    made, late = stamped[b] - stamped[a], b - stamped[b]
+    if made > limit:
+        return f"stamped {made:.2f} s apart: made late, upstream of the monitor"
+    return (f"stamped {made:.2f} s apart, the first after it received {late:.2f} s after its "
+            f"stamp: made in time, delivered late")
+
+
+def also_silent(rec: TestbedRecord, topic: str, a: float, b: float) -> str:
+    """The other critical topics that usually come more than twice between `a` and `b` (their
+    median interval) but of which the monitor received nothing then, in words: silent together,
+    the stall is shared (the robot's CPU, or the monitor's)."""
+    others = []
+    for other in sorted(rec.critical_freq_min):
+        times = sorted(rec.receipts.get(other, []))
+        if other == topic or len(times) < 3:
+            continue
+        usual = statistics.median(y - x for x, y in zip(times, times[1:]))
+        if 2 * usual < b - a and not any(a < t < b for t in times):
+            others.append(other)
+    return f"nothing received of {', '.join(others)} either" if others else ""
 
 
 def silence_violations(rec: TestbedRecord) -> List[Tuple[Violation, str]]:

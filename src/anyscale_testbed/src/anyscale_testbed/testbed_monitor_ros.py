@@ -11,12 +11,14 @@ node's command line but has not contacted the master: it is no instance until th
 starts it."""
 import math
 import os
+import struct
 import sys
 import threading
 import time
 from typing import Dict, List, Optional, Set
 
 import rosgraph
+import roslib.message
 import rospy
 from anyscale_msgs.msg import Mapping as MappingMsg
 from anyscale_msgs.msg import CostEstimates, MigrationEvent, ScaleStatus
@@ -99,6 +101,15 @@ def _is_fork_of(parent: int, args: List[bytes], comm: bytes) -> bool:
         return False
 
 
+def header_stamp(buff: bytes) -> Optional[float]:
+    """The stamp (s) of a serialised message that starts with a std_msgs/Header (seq, then the
+    stamp's secs and nsecs, uint32 each), None if too short for one."""
+    if len(buff) < 12:
+        return None
+    secs, nsecs = struct.unpack_from("<II", buff, 4)
+    return secs + nsecs * 1e-9
+
+
 class TestbedMonitor:
     def __init__(self):
         model_path = rospy.get_param("~model")
@@ -137,6 +148,7 @@ class TestbedMonitor:
                 if c.tolerance == 0:
                     self.rec.critical_freq_min[c.topic] = max(
                         self.rec.critical_freq_min.get(c.topic, 0.0), float(c.freq_min))
+        self.has_header: Dict[str, bool] = {}     # message type -> whether it has a header
         self.node_names = [n.name for n in self.model.nodes]
         self.master = rosgraph.Master(rospy.get_name())
         self.pose_topic = rospy.get_param("~pose_topic", "/amcl_pose")
@@ -188,9 +200,15 @@ class TestbedMonitor:
     def _on_output(self, msg, topic):
         now = self.now()
         # rospy puts the sending connection's header on each message it delivers.
-        sender = getattr(msg, "_connection_header", {}).get("callerid", "")
+        header = getattr(msg, "_connection_header", {})
+        sender = header.get("callerid", "")
+        stamp = (self._stamp(msg, header.get("type", "")) if topic in self.rec.critical_freq_min
+                 else None)
         with self.lock:
             self.rec.receipts[topic].append(now)
+            if stamp is not None:
+                self.rec.stamps.setdefault(topic, []).append(
+                    (now, stamp - self.rec.started_wall))
             senders = self.rec.senders[topic]
             if not senders or senders[-1][1] != sender:
                 senders.append((now, sender))
@@ -208,6 +226,13 @@ class TestbedMonitor:
                 with self.lock:
                     self.markers |= ids
                     self.rec.markers_seen = sorted(self.markers)
+
+    def _stamp(self, msg, msg_type: str) -> Optional[float]:
+        """The header stamp (s) of a raw message whose type has a header, else None."""
+        if msg_type not in self.has_header:
+            cls = roslib.message.get_message_class(msg_type) if msg_type else None
+            self.has_header[msg_type] = bool(cls is not None and cls._has_header)
+        return header_stamp(msg._buff) if self.has_header[msg_type] else None
 
     def _on_mapping(self, msg):
         mapping = {a.node: a.scale for a in msg.assignments}

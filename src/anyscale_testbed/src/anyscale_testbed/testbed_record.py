@@ -86,6 +86,10 @@ class TestbedRecord:
     # The topics of critical connections (Δ 0) -> the highest freq_min among them, when the
     # monitor records their receipts too (~record_critical, the fault soak); else empty.
     critical_freq_min: Dict[str, float] = field(default_factory=dict)
+    # Those topics' messages that carry a header -> (receive time, header stamp), both on this
+    # record's clock: a silence is then told as made late (the stamps are as far apart) or
+    # delivered late. Empty in older records and without ~record_critical.
+    stamps: Dict[str, List[Tuple[float, float]]] = field(default_factory=dict)
     # silences longer than their tolerance: testbed_figures.tolerance_violations
     violations: List[Violation] = field(default_factory=list)
     # Ground truth's heading at truth's samples (t, yaw rad), for the mean |omega| of the

@@ -4,14 +4,14 @@ it does the laptop's, while laptop - server traffic stays on the wired side; the
 carries its 100 Mbit/s tbf on both ends; teardown leaves nothing. Its own names and subnet
 (process_access_point_layout), no CPU quotas: it may run beside a test bed."""
 import os
-import sys
-import time
 
 import pytest
 
 from anyscale_testbed.access_point_layout import process_access_point_layout
 from anyscale_testbed.system_test_gate import NOT_RUN
 from anyscale_testbed.two_scale_testbed import TwoScaleTestbed, missing_capabilities, run
+
+import tcp_byte_counter
 
 MISSING = missing_capabilities(need_cgroups=False)
 pytestmark = pytest.mark.skipif(bool(MISSING), reason=NOT_RUN + "this machine lacks " +
@@ -21,36 +21,13 @@ TAG = "astb"
 LAYOUT = process_access_point_layout(TAG, "10.213.94", os.getpid())
 ROBOT, LAPTOP, SERVER = LAYOUT.ends
 
-LISTENER = """
-import socket, sys
-s = socket.socket(); s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-s.bind((sys.argv[1], 7701)); s.listen(4); print("ready", flush=True)
-while True:
-    c, _ = s.accept(); n = 0
-    while True:
-        b = c.recv(65536)
-        if not b: break
-        n += len(b)
-    c.sendall(str(n).encode()); c.close()
-"""
-
-CLIENT = """
-import socket, sys, time
-t = time.monotonic(); s = socket.create_connection((sys.argv[1], 7701), timeout=20)
-s.sendall(b"x" * int(sys.argv[2])); s.shutdown(socket.SHUT_WR)
-print(s.recv(64).decode(), time.monotonic() - t)
-"""
+PORT = 7701
 
 
 def send_bytes(sender, size):
     """`size` bytes from the scale end `sender` to the server: (bytes received, seconds), or
     (None, None) if they could not be sent."""
-    done = run(["ip", "netns", "exec", sender.namespace, sys.executable, "-c", CLIENT,
-                SERVER.address, str(size)], check=False)
-    if done.returncode != 0:
-        return None, None
-    received, seconds = done.stdout.split()
-    return int(received), float(seconds)
+    return tcp_byte_counter.send_bytes(sender.namespace, SERVER.address, PORT, size, 20)
 
 
 def leftovers():
@@ -61,14 +38,9 @@ def leftovers():
 
 
 def test_the_server_is_behind_the_wifi_hop_and_the_wired_segment(tmp_path):
-    log = tmp_path / "listener.log"
     with TwoScaleTestbed(LAYOUT, cgroup_prefix=f"{TAG}{os.getpid()}") as bed:
-        listener = bed.start("server", [sys.executable, "-u", "-c", LISTENER, SERVER.address],
-                             log_path=str(log))
-        for _ in range(50):
-            if "ready" in log.read_text():
-                break
-            time.sleep(0.1)
+        listener = tcp_byte_counter.start_listener(bed, "server", SERVER.address, PORT,
+                                                   tmp_path / "listener.log")
         for end, port in ((SERVER.namespace, SERVER.interface),
                           (LAYOUT.ap_namespace, LAYOUT.remotes[1].port)):
             shown = run(["ip", "netns", "exec", end, "tc", "qdisc", "show", "dev", port]).stdout

@@ -16,6 +16,8 @@ from anyscale_testbed.two_scale_testbed import (ScaleEnd, TwoScaleError, TwoScal
                                                 TwoScaleTestbed, missing_capabilities, run,
                                                 WORLD_NICE, shape_commands)
 
+import tcp_byte_counter
+
 MISSING = missing_capabilities()
 needs_testbed = pytest.mark.skipif(bool(MISSING), reason=NOT_RUN + "this machine lacks " +
                                    "; ".join(MISSING))
@@ -24,35 +26,13 @@ LAYOUT = TwoScaleLayout(
     robot=ScaleEnd("robot", "anyscale_t_robot", "ast_robot", "10.213.9.1", 0.4),
     laptop=ScaleEnd("laptop", "anyscale_t_laptop", "ast_laptop", "10.213.9.2", 0.0))
 
-SERVER = """
-import socket, sys
-s = socket.socket(); s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-s.bind((sys.argv[1], 7700)); s.listen(4); print("ready", flush=True)
-while True:
-    c, _ = s.accept(); n = 0
-    while True:
-        b = c.recv(65536)
-        if not b: break
-        n += len(b)
-    c.sendall(str(n).encode()); c.close()
-"""
-
-CLIENT = """
-import socket, sys, time
-t = time.monotonic(); s = socket.create_connection((sys.argv[1], 7700), timeout=30)
-s.sendall(b"x" * int(sys.argv[2])); s.shutdown(socket.SHUT_WR)
-print(s.recv(64).decode(), time.monotonic() - t)
-"""
+PORT = 7700
 
 
 def send_bytes(bed, size):
     """Sends size bytes laptop -> robot; returns (bytes the robot received, seconds)."""
-    done = run(["ip", "netns", "exec", bed.end("laptop").namespace, sys.executable, "-c", CLIENT,
-                bed.end("robot").address, str(size)], check=False)
-    if done.returncode != 0:
-        return None, None
-    received, seconds = done.stdout.split()
-    return int(received), float(seconds)
+    return tcp_byte_counter.send_bytes(bed.end("laptop").namespace, bed.end("robot").address,
+                                       PORT, size)
 
 
 def namespaces():
@@ -69,12 +49,8 @@ def test_shape_commands_are_argv_lists():
 @needs_testbed
 def test_traffic_crosses_a_shaped_link_and_stops_when_it_is_down(tmp_path):
     with TwoScaleTestbed(LAYOUT, cgroup_prefix="anyscale_t") as bed:
-        server = bed.start("robot", [sys.executable, "-u", "-c", SERVER, LAYOUT.robot.address],
-                           log_path=str(tmp_path / "server.log"))
-        for _ in range(50):
-            if "ready" in (tmp_path / "server.log").read_text():
-                break
-            time.sleep(0.1)
+        server = tcp_byte_counter.start_listener(bed, "robot", LAYOUT.robot.address, PORT,
+                                                 tmp_path / "server.log")
         assert send_bytes(bed, 100_000)[0] == 100_000
         bed.shape(1.0)
         received, seconds = send_bytes(bed, 500_000)        # 4 Mbit at 1 Mbit/s

@@ -9,8 +9,12 @@ that held at its start, in this order:
 - hold after a loss: the link had come back less than hold_after_loss_s before;
 - hysteresis T: the node had come home less than hysteresis_s before (the paper's T);
 - before the first move out: the start-up (the node set coming up, the first bandwidth hold);
-- other: the bandwidth hold before a move out (bandwidth_hold_s), the move's own start, and
-  the link estimate lagging the link.
+- held by the link ahead: the decision node's "link ahead" diagnostics (the record's
+  link_ahead) had the node held home, or brought home, before a hole the link map foresaw;
+- placement back-off: a return for rate or CPU there had backed the move off ("backed off N s");
+- bandwidth hold: the link had been weak or down less than bandwidth_hold_s before (a move out
+  waits for the link to show its streams that long);
+- other: the move's own start, and the link estimate lagging the link.
 Apart from these, the moves out themselves cost time the bound does not remove either: from the
 decision until the new instance publishes and the robot speeds up, the steps mapped out were
 driven at the robot's speed; their seconds against the speed with AMCL out are `moving`.
@@ -18,7 +22,8 @@ The thresholds are robot.launch's defaults, which the evaluation runs with. `ste
 path_steps.PathSteps."""
 from dataclasses import dataclass, field
 import math
-from typing import Dict, List, Optional
+import re
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -26,9 +31,11 @@ from .path_steps import PathSteps
 from .testbed_figures import link_transitions, move_window
 from .testbed_record import TestbedRecord
 
-WEAK, HOLD, HYSTERESIS, START, OTHER = ("weak link", "hold after a loss", "hysteresis T",
-                                        "before the first move out", "other")
-CAUSES = (WEAK, HOLD, HYSTERESIS, START, OTHER)
+WEAK, HOLD, HYSTERESIS, START, AHEAD, BACKOFF, BANDWIDTH_HOLD, OTHER = (
+    "weak link", "hold after a loss", "hysteresis T", "before the first move out",
+    "held by the link ahead", "placement back-off", "bandwidth hold", "other")
+CAUSES = (WEAK, HOLD, HYSTERESIS, START, AHEAD, BACKOFF, BANDWIDTH_HOLD, OTHER)
+BACKED_OFF = re.compile(r"backed off (\d+(?:\.\d+)?) s")
 
 
 @dataclass(frozen=True)
@@ -38,6 +45,7 @@ class PolicyParams:
     weak_link_mbps: float = 5.5
     hold_after_loss_s: float = 20.0     # the judged node's own
     hysteresis_s: float = 10.0
+    bandwidth_hold_s: float = 5.0
 
     @staticmethod
     def of_record(rec: TestbedRecord, node: str = "amcl") -> "PolicyParams":
@@ -49,7 +57,8 @@ class PolicyParams:
         if isinstance(own, dict) and node in own:
             hold = own[node]
         return PolicyParams(float(p.get("weak_link_mbps", default.weak_link_mbps)), float(hold),
-                            float(p.get("hysteresis_s", default.hysteresis_s)))
+                            float(p.get("hysteresis_s", default.hysteresis_s)),
+                            float(p.get("bandwidth_hold_s", default.bandwidth_hold_s)))
 
 
 @dataclass(frozen=True)
@@ -79,9 +88,14 @@ def step_causes(rec: TestbedRecord, steps: PathSteps, params: PolicyParams,
     moved = [e for e in rec.events if e.node == node and e.success]
     returns = [e.decided_t for e in moved if e.kind == "migrate_back"]
     first_out = min([e.decided_t for e in moved if e.kind == "migrate"], default=math.inf)
-    causes = []
+    backoffs = [(e.decided_t, e.decided_t + float(m.group(1))) for e in moved
+                if e.kind == "migrate_back" for m in [BACKED_OFF.search(e.reason)] if m]
+    kept_home = (f"{node} held:", f"{node} home:")
+    ahead = [(t, any(k in summary for k in kept_home)) for t, summary, _ in rec.link_ahead]
+    causes, weak_at = [], -math.inf
     for t, mbps in zip(steps.t, steps.mbps):
         if mbps < params.weak_link_mbps:
+            weak_at = t
             causes.append(WEAK)
         elif _since_last(link_back, t) < params.hold_after_loss_s:
             causes.append(HOLD)
@@ -89,9 +103,21 @@ def step_causes(rec: TestbedRecord, steps: PathSteps, params: PolicyParams,
             causes.append(HYSTERESIS)
         elif t < first_out:
             causes.append(START)
+        elif _latest(ahead, t):
+            causes.append(AHEAD)
+        elif any(a <= t < b for a, b in backoffs):
+            causes.append(BACKOFF)
+        elif t - weak_at < params.bandwidth_hold_s:
+            causes.append(BANDWIDTH_HOLD)
         else:
             causes.append(OTHER)
     return causes
+
+
+def _latest(changes: List[Tuple[float, bool]], t: float) -> bool:
+    """The value of the latest change at or before t (False before the first)."""
+    before = [v for at, v in changes if at <= t]
+    return before[-1] if before else False
 
 
 def shortfall(rec: TestbedRecord, steps: PathSteps, params: Optional[PolicyParams] = None,

@@ -34,8 +34,9 @@ from anyscale_core.ros_convert import EVENT_NAMES
 
 from .proc_census import is_standby_comm
 from .testbed_figures import colour_violations, format_summary, tolerance_violations
+from .record_saver import BackgroundSaver
 from .testbed_record import (DECISION_PARAMS, LINK_AHEAD_STATUS, EventRecord, ProcessSample,
-                             TestbedRecord, save_record)
+                             TestbedRecord)
 
 
 def say(line: str):
@@ -115,6 +116,7 @@ class TestbedMonitor:
         model_path = rospy.get_param("~model")
         self.model = load_model(model_path)
         self.record_path = rospy.get_param("~record_path")
+        self.saver = BackgroundSaver(self.record_path)
         self.duration_s = float(rospy.get_param("~duration_s", 0.0))
         self.exit_when_done = bool(rospy.get_param("~exit_when_done", True))
         self.rec = TestbedRecord(started_wall=time.time(), world=rospy.get_param("~world", ""),
@@ -353,23 +355,24 @@ class TestbedMonitor:
                 break
             self._sample()
             if time.monotonic() - last_save > 5.0:
-                self.save()     # a killed run still leaves its record
+                with self.lock:
+                    copy = self.rec.snapshot()
+                copy.violations = tolerance_violations(copy)
+                self.saver.start(copy)      # a killed run still leaves its record
                 last_save = time.monotonic()
             try:
                 rate.sleep()
             except rospy.ROSInterruptException:
                 break
-        self.rec.finished_t = self.now()
-        self.rec.ended_by = ended_by
-        self.save()
+        with self.lock:
+            self.rec.finished_t = self.now()
+            self.rec.ended_by = ended_by
+            self.rec.violations = tolerance_violations(self.rec)
+            last = self.rec.snapshot()
+        self.saver.finish(last)
         terminal = sys.stdout.isatty()     # on the test bed a pipe: run_testbed.py colours
         for line in format_summary(self.rec, self.outputs, self.tolerances).splitlines():
             say(colour_violations(line, terminal))
-
-    def save(self):
-        with self.lock:
-            self.rec.violations = tolerance_violations(self.rec)
-        save_record(self.rec, self.lock, self.record_path)
 
 
 def main(argv=None) -> int:

@@ -184,17 +184,6 @@ def _replace(rec: TestbedRecord, path: str):
     os.replace(tmp, path)
 
 
-def save_record(rec: TestbedRecord, lock, path: str):
-    """Writes `rec` to `path` (whole, or not at all: through a temporary file), holding `lock`
-    only to copy it: the monitor's receive threads take that lock to note each message, and a
-    message noted after a save of a long record would be noted that much late."""
-    with lock:
-        copy = rec.snapshot()
-    tmp = path + ".tmp"
-    copy.save(tmp)
-    os.replace(tmp, path)
-
-
 def kind_of_move(e: EventRecord) -> str:
     """MOVE_KINDS of a migrate or migrate_back event ("" for any other event)."""
     if e.kind == "migrate":

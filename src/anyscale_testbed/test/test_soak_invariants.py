@@ -163,7 +163,7 @@ def test_the_sensors_stopping_together_at_the_end_is_no_critical_silence():
     assert [(v.topic, round(v.silence_s, 1)) for v in critical_violations(rec)] == [("/scan", 1.3)]
 
 
-def test_a_critical_silence_says_whether_its_messages_were_made_or_delivered_late():
+def test_a_critical_silence_says_whether_its_data_or_its_messages_came_late():
     rec = with_critical_odom(record(), [(50.05, 50.5)])     # received at 50.0, then at 50.5
     rec.critical_freq_min["/scan"] = 2.0                    # its 0.5 s silence is no violation
     rec.receipts["/scan"] = with_critical_odom(TestbedRecord()).receipts["/odom"]
@@ -173,13 +173,13 @@ def test_a_critical_silence_says_whether_its_messages_were_made_or_delivered_lat
     rec.stamps["/odom"] = [(t, t) for t in odom]
     rec.stamps["/odom"][after] = (odom[after], odom[after - 1] + 0.1)
     [v] = critical_violations(rec)
-    assert "stamped 0.10 s apart, the first after it received 0.40 s after its stamp: made in " \
-           "time, delivered late" in v.cause and "either" not in v.cause
+    assert "stamped 0.10 s apart, the first after it received 0.40 s after its stamp: its data " \
+           "on time, late from its publisher to the monitor" in v.cause and "either" not in v.cause
     # Made late: the stamps are as far apart as the receipts; /scan stalled with it.
     rec.stamps["/odom"] = [(t, t) for t in odom]
     rec.receipts["/scan"] = [t for t in rec.receipts["/scan"] if not 50.05 < t < 50.45]
     [v] = critical_violations(rec)
-    assert "stamped 0.50 s apart: made late" in v.cause
+    assert "stamped 0.50 s apart: its data came late to its publisher" in v.cause
     assert "nothing received of /scan either" in v.cause
     # Without stamps (a message with no header, an older record) the cause says neither.
     rec.stamps = {}

@@ -48,16 +48,17 @@ def critical_violations(rec: TestbedRecord) -> List[Violation]:
 
 
 def made_or_delivered(rec: TestbedRecord, topic: str, a: float, b: float, limit: float) -> str:
-    """Whether the messages received at `a` and `b` (a silence's ends) were made as far apart,
-    from their header stamps, in words: "" where the record has no stamps for them."""
+    """Whether the messages received at `a` and `b` (a silence's ends) carry data as far apart,
+    from their header stamps (their data's time: a driver's sample, or the input a node
+    derived them from), in words: "" where the record has no stamps for them."""
     stamped = dict(map(tuple, rec.stamps.get(topic, [])))
     if a not in stamped or b not in stamped:
         return ""
     made, late = stamped[b] - stamped[a], b - stamped[b]
     if made > limit:
-        return f"stamped {made:.2f} s apart: made late, upstream of the monitor"
+        return f"stamped {made:.2f} s apart: its data came late to its publisher"
     return (f"stamped {made:.2f} s apart, the first after it received {late:.2f} s after its "
-            f"stamp: made in time, delivered late")
+            f"stamp: its data on time, late from its publisher to the monitor")
 
 
 def also_silent(rec: TestbedRecord, topic: str, a: float, b: float) -> str:

@@ -33,8 +33,8 @@ from anyscale_core.model_loader import load_model
 from anyscale_core.ros_convert import EVENT_NAMES
 
 from .proc_census import is_standby_comm
-from .testbed_figures import colour_violations, format_summary, tolerance_violations
 from .record_saver import BackgroundSaver
+from .testbed_figures import colour_violations, format_summary, tolerance_violations
 from .testbed_record import (DECISION_PARAMS, LINK_AHEAD_STATUS, EventRecord, ProcessSample,
                              TestbedRecord)
 

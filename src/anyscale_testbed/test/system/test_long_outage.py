@@ -71,7 +71,11 @@ def test_amcl_moves_out_again_soon_after_a_60_s_outage(run):
 def test_no_node_is_sent_back_by_a_rate_counted_on_a_stale_connection(run):
     """The laptop's agent counts the rates of what its nodes receive; a subscription held up by
     TCP's backoff counted 0 Hz, and AMCL and AR came back 9 s after moving out, judged below
-    freq_min while their outputs ran at full rate."""
+    freq_min while their outputs ran at full rate. A return for the laptop's CPU is none of
+    this test's (AR recognition costs the laptop several times the model's 12 % and may be
+    sent home over capacity: the placement learning's tests judge that)."""
     up_at = [t for (t, a), (_, b) in zip(run.bandwidth, run.bandwidth[1:]) if a != b][-1]
-    backs = [e for e in run.events if e.kind == "migrate_back" and e.decided_t > up_at]
+    backs = [(round(e.decided_t, 1), e.node, e.reason) for e in run.events
+             if e.kind == "migrate_back" and e.decided_t > up_at
+             and e.reason.startswith("connection spending its tolerance")]
     assert backs == [], backs

@@ -92,6 +92,20 @@ def test_paper_overloaded_remote_scale_returns_its_heaviest_node(testbed_ch):
     assert [testbed_ch.node_names[m.node] for m in d.moves] == ["amcl"]   # 60 + 12 fits
 
 
+def test_paper_moves_a_node_out_only_short_of_saturating_the_scale(testbed_ch):
+    # AMCL takes 36 % of the laptop: onto 54 % of load it fills it to 90 %, onto 55 % past it.
+    at_54 = PaperAllocator().step(testbed_ch, testbed_ch.initial_mapping(),
+                                  DynamicState(54, {"laptop": 54}), AllocationContext())
+    assert [testbed_ch.node_names[m.node] for m in at_54.moves] == ["amcl"]
+    at_55 = PaperAllocator().step(testbed_ch, testbed_ch.initial_mapping(),
+                                  DynamicState(54, {"laptop": 55}), AllocationContext())
+    assert "amcl" not in [testbed_ch.node_names[m.node] for m in at_55.moves]
+    # Once there, the laptop at 95 % is saturated but not over capacity: AMCL stays.
+    stay = PaperAllocator().step(testbed_ch, at_54.assign, DynamicState(54, {"laptop": 59}),
+                                 AllocationContext())
+    assert stay.moves == []
+
+
 def test_paper_prefers_the_fastest_remote_scale(testbed_dict):
     testbed_dict["scales"].append({"name": "server", "cpu_ghz": 3.5, "cores": 8,
                                    "memory_mb": 8192, "alpha": 8.75})

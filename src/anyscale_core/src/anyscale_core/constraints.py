@@ -10,8 +10,16 @@ from .characterisation import Characterisation
 from .model import ModelError, SystemModel
 from .model_loader import is_finite_number, read_yaml
 
-# A scale is full at 100 % of its CPU (the unit of cpu_usage and scale_load).
+# A scale is full at 100 % of its CPU (the unit of cpu_usage and scale_load): above it, nodes
+# on a remote scale return.
 CPU_CAPACITY_PERCENT = 100.0
+# A scale busier than this (% of its capacity, ScaleStatus.cpu_percent) runs at its limit: a
+# node's CPU there is the share it got. Not 100: the agents' samples are not aligned with a
+# quota's CFS periods, and a group throttled in every period still idles in the milliseconds
+# between its processes' wake-ups. `anyscale profile` names such figures a share by this rule,
+# and the paper allocator moves a node onto a remote scale only up to it: the band up to
+# CPU_CAPACITY_PERCENT keeps a move that fills a scale from being undone at its next sample.
+SATURATED_PERCENT = 90.0
 
 
 @dataclass(frozen=True)

@@ -19,13 +19,9 @@ from typing import Callable, Dict, List, Mapping, Tuple
 import numpy as np
 
 from .characterisation import Characterisation
+from .constraints import SATURATED_PERCENT
 from .decision_types import ScaleReport
 
-# A scale busier than this (% of its capacity, ScaleStatus.cpu_percent) runs at its limit: a
-# node's CPU there is the share it got. Not 100: the agents' samples are not aligned with a
-# quota's CFS periods, and a group throttled in every period still idles in the milliseconds
-# between its processes' wake-ups. `anyscale profile` names such figures a share by this rule.
-SATURATED_PERCENT = 90.0
 # Samples whose median is learned from: a node's start (imports) or one sample taken across a
 # stop is outvoted, a lasting change is not.
 MEDIAN_OF = 5

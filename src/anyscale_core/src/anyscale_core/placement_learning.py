@@ -15,8 +15,8 @@ from typing import Callable, Dict, FrozenSet, List, Mapping, Optional, Tuple
 import numpy as np
 
 from .characterisation import Characterisation
-from .constraints import CPU_CAPACITY_PERCENT, DynamicState
-from .cost_estimate import SATURATED_PERCENT, CostEstimates, CostRow
+from .constraints import CPU_CAPACITY_PERCENT, SATURATED_PERCENT, DynamicState
+from .cost_estimate import CostEstimates, CostRow
 from .decision_types import DecisionParams, ScaleReport
 from .placement_backoff import PlacementBackoff, PlacementBackoffParams, describe
 
@@ -89,7 +89,7 @@ class PlacementLearning:
             if assign[i] == k:
                 continue
             load = self.load(i, k, assign, state, now)
-            fits = load + self.cost(i, k, now) <= CPU_CAPACITY_PERCENT + 1e-9
+            fits = load + self.cost(i, k, now) <= SATURATED_PERCENT + 1e-9
             seen = self.busy.get(self.ch.scale_names[k], (-math.inf, 0.0))[0]
             if seen <= self.backoff.backoffs[i, k].at:
                 load = math.inf

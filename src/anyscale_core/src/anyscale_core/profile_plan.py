@@ -35,7 +35,7 @@ from typing import Dict, Iterable, List, Mapping, Optional, Sequence, Tuple
 from .characterisation import characterise
 # A scale busier than this over a window ran at its limit: its nodes' figures are shares (see
 # above); the decision node's cost estimates judge a scale by the same rule.
-from .cost_estimate import SATURATED_PERCENT
+from .constraints import SATURATED_PERCENT
 from .model import ModelError, SystemModel
 from .model_todos import home_mapping
 from .model_update import CommentBlock, NumberEdit, node_paths

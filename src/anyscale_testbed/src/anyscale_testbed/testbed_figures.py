@@ -9,7 +9,7 @@ from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from anyscale_core.profile_plan import SATURATED_PERCENT
+from anyscale_core.constraints import SATURATED_PERCENT
 
 from .cost_figures import cost_lines
 from .premise_figures import (EVERY_NODE_HOME, PREMISE_AMCL_HZ, START_UP_S, premise_figures,

@@ -6,7 +6,10 @@ Where the published pseudo-code is ambiguous this follows its evident intent, as
   return frees the most bandwidth;
 - a candidate node that fails the hysteresis or bandwidth test is skipped (the pseudo-code has
   no else branch and would spin on it);
-- the bandwidth test is made on the mapping as it would be after the move.
+- the bandwidth test is made on the mapping as it would be after the move;
+- a node moves onto a remote scale only while that keeps the scale below SATURATED_PERCENT
+  (90 %), and returns for its CPU only above CPU_CAPACITY_PERCENT (100 %), so that a move that
+  fills a scale is not undone at its next sample.
 """
 from dataclasses import replace
 from typing import List, Tuple
@@ -14,8 +17,8 @@ from typing import List, Tuple
 import numpy as np
 
 from ..characterisation import Characterisation
-from ..constraints import (CPU_CAPACITY_PERCENT, DynamicState, admission_state,
-                           required_bandwidth, scale_cpu, scale_memory)
+from ..constraints import (CPU_CAPACITY_PERCENT, SATURATED_PERCENT, DynamicState,
+                           admission_state, required_bandwidth, scale_cpu, scale_memory)
 from .base import AllocationContext, Decision, Move, candidate_scales
 from .move_delta import UnitDeltas
 
@@ -119,10 +122,10 @@ class PaperAllocator:
         need = required_bandwidth(ch, assign) \
             + UnitDeltas(ch).bandwidth(assign)[np.ix_(node_list, scale_list)]
         # The first (node_i, scale_j) in the order of node_list, then scale_list, that
-        # scale_j can allocate with the bandwidth the move leaves.
+        # scale_j can allocate, short of running saturated, with the bandwidth the move leaves.
         fits = mask[np.ix_(node_list, scale_list)] & (need <= bandwidth + 1e-9) \
             & (cpu[scale_list] + ch.cpu[np.ix_(node_list, scale_list)]
-               <= CPU_CAPACITY_PERCENT + 1e-9) \
+               <= SATURATED_PERCENT + 1e-9) \
             & (mem[scale_list] + ch.memory[node_list][:, None]
                <= ch.scale_memory[scale_list] + 1e-9)
         if not fits.any():

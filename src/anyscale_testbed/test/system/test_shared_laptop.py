@@ -13,7 +13,8 @@ namespace. The laptop is one machine: both laptop namespaces' processes (each ro
 agent, the nodes it starts, and a burner) run in one cgroup CPU quota of LAPTOP_CORES and share
 one ledger file; only their network ends differ (a laptop with an interface toward each robot).
 Each robot runs its own roscore, agent and decision node on the stock relay model with the
-relay costing the laptop 60 % (learn_costs false): room for one robot's relay.
+relay costing the laptop 52 % (learn_costs false): room for one robot's relay (two fill 104 %),
+which goes out while the laptop's other load is at most 38 % (the paper allocator's 90 % fit).
 
 Rounds: a seeded schedule of a burner in the laptop's quota (busy most of each 100 ms, for
 4-6 s) that sends the laptop's relay home for CPU, then room (6-9 s) in which both robots'
@@ -45,13 +46,13 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROUNDS = int(os.environ.get("ANYSCALE_SHARED_LAPTOP_ROUNDS", "6"))
 ROBOTS = ("robot_a", "robot_b")
 LAPTOP_CORES = 1.0
-RELAY_LAPTOP_PERCENT = 60.0
+RELAY_LAPTOP_PERCENT = 52.0
 HYSTERESIS_S = 3.0
 LEASE_S = 3.0                  # the decision node's default ~lease_s
 RELAY_TOLERANCE_S = 2.0        # relay_model.yaml: /chatter_relay's Δ
 SEED = 39
-# Busy 85 of every 100 ms: the laptop at ~90 % of its quota, far above the 40 % that leaves
-# room for the relay's 60.
+# Busy 85 of every 100 ms: the laptop at ~90 % of its quota, far above the 38 % that leaves
+# room for the relay's 52 below 90 %.
 BURN = """
 import time
 while True:
@@ -233,7 +234,8 @@ def test_the_laptops_admitted_cpu_never_exceeds_its_capacity(run):
     print(f"{len(run['samples'])} ledger samples: at most {most:g} % held; "
           f"{len(both)} with both robots holding")
     assert most <= 100.0
-    assert not both, "both relays (60 % each) were held on the laptop at once"
+    assert not both, \
+        f"both relays ({RELAY_LAPTOP_PERCENT:g} % each) were held on the laptop at once"
 
 
 def test_both_robots_wanted_the_laptop_and_took_it_in_turn(run):

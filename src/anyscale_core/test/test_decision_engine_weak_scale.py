@@ -26,9 +26,9 @@ PERIOD = 0.5
 PARAMS = DecisionParams(bandwidth_hold_s=0.0)
 
 
-def bed_reports(t, engine, background, starved, link=True):
+def bed_reports(t, engine, background, starved, link=True, bandwidth=3.0):
     """The agents' reports at t for the engine's current mapping."""
-    out = reports(t, bandwidth=3.0, laptop=link)
+    out = reports(t, bandwidth=bandwidth, laptop=link)
     if not link:
         return out
     laptop = out["laptop"]
@@ -169,3 +169,32 @@ def test_with_plan_with_estimates_false_the_allocators_see_the_model():
                                        learning=LearningParams(plan_with_estimates=False)))
     run(engine, PERIOD, 30.0, background=50.0)
     assert engine.learning.planning(30.0) is engine.ch
+
+
+def test_a_slow_rate_on_a_laptop_with_room_over_a_link_that_carries_it_is_a_failure():
+    """/scan at 4 of 5 Hz on a laptop 70-82 % busy, over 27 Mbit/s (half of 802.11g's nominal, far
+    more than what crosses it): not the link's doing, so each return backs off, doubling."""
+    engine = make_engine(5.0)
+
+    def slow_scan(t, e):
+        out = bed_reports(t, e, 5.0, False, bandwidth=27.0)
+        there = {n for n, s in e.mapping().items() if s == "laptop"}
+        running = {"ar_recognition": 10.0} if "ar_recognition" in there else {}
+        if "amcl" in there:
+            running["amcl"] = 58.5
+            out["laptop"] = replace(out["laptop"], topic_rates={**out["laptop"].topic_rates,
+                                                                "/scan": 4.0})
+        busy = 5.0 + 12.0 * ("ar_recognition" in there) + 65.0 * ("amcl" in there)
+        out["laptop"] = replace(out["laptop"], cpu_percent=busy, running=running)
+        return out
+
+    outs, backs, notes, t = [], [], [], PERIOD
+    while t < 200.0:
+        result = engine.tick(slow_scan(t, engine), t)
+        outs += [t for e in result.events if e.node == "amcl" and e.kind == "migrate"]
+        backs += [t for e in result.events if e.node == "amcl" and e.kind == "migrate_back"]
+        notes += result.notes
+        t += PERIOD
+    waits = [round(o - b) for b, o in zip(backs, outs[1:])]
+    assert len(waits) >= 2 and waits == [10, 20, 40, 80][:len(waits)], (outs, backs)
+    assert len(notes) == len(backs) and re.search(r"the link at 2\d Mbit/s", notes[0])

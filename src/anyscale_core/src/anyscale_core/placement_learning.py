@@ -4,9 +4,10 @@ and the back-off of moves sent back for rate or CPU (placement_backoff.py).
 
 A return counts as a failed placement when the scale could not give the node what it needs:
 the node's estimate no longer fits the scale's load (CPU), or a connection of the node spent its
-tolerance while the scale was saturated (rate). A return for the link (down, bandwidth, a weak
-link) is none, nor is a rate or silence on a scale with room: the link, not the scale, is then
-the likely cause, and the link's own rules handle it.
+tolerance while the scale was saturated, or while the link carried the streams with margin
+(rate: the scale's, not the link's). A return for the link (down, bandwidth, a weak link) is
+none, nor is a rate or silence on a scale with room over a link that may not carry them: the
+link is then the likely cause, and the link's own rules handle it.
 """
 from dataclasses import dataclass, replace
 import math
@@ -15,10 +16,19 @@ from typing import Callable, Dict, FrozenSet, List, Mapping, Optional, Tuple
 import numpy as np
 
 from .characterisation import Characterisation
-from .constraints import CPU_CAPACITY_PERCENT, SATURATED_PERCENT, DynamicState
+from .constraints import (CPU_CAPACITY_PERCENT, SATURATED_PERCENT, DynamicState,
+                          required_bandwidth)
 from .cost_estimate import CostEstimates, CostRow
 from .decision_types import DecisionParams, ScaleReport
 from .placement_backoff import PlacementBackoff, PlacementBackoffParams, describe
+
+
+# A link with this many times the bandwidth of the streams that cross it, and this share of
+# its technology's nominal bandwidth (13.5 of 802.11g's 54 Mbit/s; the office floor's coverage
+# gives 27 where it is good, 3-8 at its edges, where loss and retries stall streams whatever
+# their size), does not make them slow: a rate short on the scale they reach is the scale's.
+LINK_MARGIN = 2.0
+LINK_NOMINAL_SHARE = 0.25
 
 
 @dataclass(frozen=True)
@@ -112,6 +122,8 @@ class PlacementLearning:
             reason = f"{scale} CPU {load:.0f} % + {cost:.0f} % estimated for it"
         elif i in violating and busy >= SATURATED_PERCENT:
             reason = f"{violating[i]}, {scale} {busy:.0f} % busy"
+        elif i in violating and self.link_carries(assign, state):
+            reason = f"{violating[i]}, the link at {state.bandwidth_mbps:.0f} Mbit/s"
         else:
             reason = ""
         if not reason:
@@ -122,6 +134,15 @@ class PlacementLearning:
             return None
         return (f"backed off {b.delay_s:g} s",
                 describe(self.ch.node_names[i], scale, b, self.learning.retry_room))
+
+    def link_carries(self, assign: np.ndarray, state: DynamicState) -> bool:
+        """The link is not a slow rate's cause: its bandwidth is LINK_MARGIN x what crosses it
+        in `assign` or more, LINK_NOMINAL_SHARE of the model's nominal or more, and not below
+        weak_link_mbps."""
+        need = required_bandwidth(self.ch, assign)
+        nominal = self.ch.model.network.max_bandwidth_mbps
+        return state.bandwidth_mbps >= max(self.params.weak_link_mbps, LINK_MARGIN * need,
+                                           LINK_NOMINAL_SHARE * nominal)
 
     def refused(self, i: int, k: int, now: float, assign: np.ndarray, state: DynamicState,
                 cpu_free: float, memory_free: float) -> List[str]:

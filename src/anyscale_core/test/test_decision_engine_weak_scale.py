@@ -71,6 +71,20 @@ def run(engine, start, end, background, starved=True, link=lambda t: True):
     return outs, backs, notes
 
 
+def drive(engine, reports_at, end):
+    """Ticks on reports_at(t, engine) from PERIOD to end: the times of AMCL's moves out and
+    back, and the log's notes."""
+    outs, backs, notes = [], [], []
+    t = PERIOD
+    while t < end:
+        result = engine.tick(reports_at(t, engine), t)
+        outs += [t for e in result.events if e.node == "amcl" and e.kind == "migrate"]
+        backs += [t for e in result.events if e.node == "amcl" and e.kind == "migrate_back"]
+        notes += result.notes
+        t += PERIOD
+    return outs, backs, notes
+
+
 def test_a_laptop_that_cannot_give_amcl_its_rates_does_not_get_it_every_t():
     """The issue's run: AMCL out on the model's 36 %, home 9-12 s later for /scan at 2.6-4.5 Hz
     on the laptop, and out again about T later, six times in a row. Here, six minutes of it."""
@@ -106,14 +120,7 @@ def test_a_failure_the_estimate_does_not_explain_backs_off_doubling():
                                     topic_rates={**out["laptop"].topic_rates, "/scan": 4.0})
         return out
 
-    outs, backs, notes = [], [], []
-    t = PERIOD
-    while t < 400.0:
-        result = engine.tick(fits_but_slow(t, engine), t)
-        outs += [t for e in result.events if e.node == "amcl" and e.kind == "migrate"]
-        backs += [t for e in result.events if e.node == "amcl" and e.kind == "migrate_back"]
-        notes += result.notes
-        t += PERIOD
+    outs, backs, notes = drive(engine, fits_but_slow, 400.0)
     waits = [o - b for b, o in zip(backs, outs[1:])]
     assert len(waits) >= 4 and [round(w) for w in waits] == [10, 20, 40, 80, 160][:len(waits)]
     assert len(notes) == len(backs)                        # each back-off logged once
@@ -188,13 +195,7 @@ def test_a_slow_rate_on_a_laptop_with_room_over_a_link_that_carries_it_is_a_fail
         out["laptop"] = replace(out["laptop"], cpu_percent=busy, running=running)
         return out
 
-    outs, backs, notes, t = [], [], [], PERIOD
-    while t < 200.0:
-        result = engine.tick(slow_scan(t, engine), t)
-        outs += [t for e in result.events if e.node == "amcl" and e.kind == "migrate"]
-        backs += [t for e in result.events if e.node == "amcl" and e.kind == "migrate_back"]
-        notes += result.notes
-        t += PERIOD
+    outs, backs, notes = drive(engine, slow_scan, 200.0)
     waits = [round(o - b) for b, o in zip(backs, outs[1:])]
     assert len(waits) >= 2 and waits == [10, 20, 40, 80][:len(waits)], (outs, backs)
     assert len(notes) == len(backs) and re.search(r"the link at 2\d Mbit/s", notes[0])

@@ -199,3 +199,27 @@ def test_a_slow_rate_on_a_laptop_with_room_over_a_link_that_carries_it_is_a_fail
     waits = [round(o - b) for b, o in zip(backs, outs[1:])]
     assert len(waits) >= 2 and waits == [10, 20, 40, 80][:len(waits)], (outs, backs)
     assert len(notes) == len(backs) and re.search(r"the link at 2\d Mbit/s", notes[0])
+
+
+def test_a_silence_on_a_laptop_with_room_over_a_link_that_carries_it_is_no_failure():
+    """AMCL's instance on the laptop dies with the laptop's agent, 4 s after each move out
+    (the shared-laptop bed's agent restart): /amcl_pose falls silent on the robot over
+    27 Mbit/s. A silence says nothing of the laptop's room, so nothing backs off."""
+    engine = make_engine(5.0)
+    out_at = {}
+
+    def dies_there(t, e):
+        out = bed_reports(t, e, 5.0, False, bandwidth=27.0)
+        if e.mapping()["amcl"] != "laptop":
+            out_at.pop("amcl", None)
+            return out
+        silent = t - out_at.setdefault("amcl", t) - 4.0
+        if silent > 0:
+            robot = out["robot"]
+            out["robot"] = replace(robot, topic_rates={**robot.topic_rates, "/amcl_pose": 0.0},
+                                   topic_silence={**robot.topic_silence, "/amcl_pose": silent})
+        return out
+
+    outs, backs, notes = drive(engine, dies_there, 120.0)
+    assert len(backs) >= 3 and len(outs) >= len(backs), (outs, backs)
+    assert notes == [] and engine.learning.backoff.backoffs == {}

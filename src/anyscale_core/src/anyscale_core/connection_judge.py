@@ -3,7 +3,7 @@ connection's rate where its subscriber runs against freq_min and Δ (the paper's
 silence against a share of Δ, and the grace a moved node gets while its new instance starts.
 The decision engine asks it every tick which remote nodes must come home, and why."""
 import math
-from typing import Dict, List, Mapping, Optional
+from typing import Dict, FrozenSet, List, Mapping, Optional
 
 import numpy as np
 
@@ -20,6 +20,9 @@ class ConnectionJudge:
                          for c in ch.model.connections]
         self.moved_at: Dict[int, float] = {}        # node -> its latest start, move or restart
         self.output_seen_at: Dict[int, float] = {}  # node -> its new instance published
+        # The nodes of the latest violating() whose connection still delivers, but below
+        # freq_min: a slow rate, not a silence (an instance that died, or a link that stalls).
+        self.slow_rate: FrozenSet[int] = frozenset()
 
     def moved(self, i: int, now: float):
         """Node i was started, moved or restarted: its connections settle for startup_grace_s."""
@@ -34,7 +37,7 @@ class ConnectionJudge:
         """Feed each connection's rate as received where its subscriber runs; return the
         remote nodes on connections that spent `act_at_tolerance` of their tolerance below
         freq_min, or were silent for `act_at_silence` of it, each with why."""
-        violating = {}
+        violating, slow = {}, set()
         for c, tracker in enumerate(self.trackers):
             ends = self._remote_ends(assign, c)
             if not ends:
@@ -42,7 +45,7 @@ class ConnectionJudge:
             conn = self.ch.model.connections[c]
             scale = self.ch.scale_names[assign[self.ch.conn_sub[c]]]
             report = reports.get(scale)
-            why = self._silence_judged(c, report, now)
+            why = silent = self._silence_judged(c, report, now)
             if self._settling(c, now):
                 tracker.update(now, math.inf)      # settling after a move: rates not judged
             else:
@@ -53,8 +56,11 @@ class ConnectionJudge:
                     counted = f"{rate:.1f} Hz" if math.isfinite(rate) else "no rate"
                     why = (f"{conn.name} {counted} on {scale} < {conn.freq_min:g} Hz for "
                            f"{tracker.below_for(now):.1f} s of {conn.tolerance:g} s")
+                    if rate > 0 and not silent:
+                        slow.update(ends)
             if why:
                 violating.update((i, why) for i in ends if not self.ch.pinned[i])
+        self.slow_rate = frozenset(i for i in slow if i in violating)
         return violating
 
     def silence_alarm(self, assign: np.ndarray, report: ScaleReport, now: float) -> bool:

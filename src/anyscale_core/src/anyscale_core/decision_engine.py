@@ -186,7 +186,7 @@ class DecisionEngine:
             reason = self.anticipation.reason(move, self._reason(move, measured, streams, weak))
             if move.source != self.ch.master:                                   # learn
                 failed = self.learning.left(move.node, move.source, now, self.assign, state,
-                                            violating)
+                                            violating, self.judge.slow_rate)
                 if failed:
                     reason, notes = f"{reason}; {failed[0]}", notes + [failed[1]]
             events.append(Event("migrate_back" if back else "migrate", name, source, target,

@@ -4,14 +4,15 @@ and the back-off of moves sent back for rate or CPU (placement_backoff.py).
 
 A return counts as a failed placement when the scale could not give the node what it needs:
 the node's estimate no longer fits the scale's load (CPU), or a connection of the node spent its
-tolerance while the scale was saturated, or while the link carried the streams with margin
-(rate: the scale's, not the link's). A return for the link (down, bandwidth, a weak link) is
-none, nor is a rate or silence on a scale with room over a link that may not carry them: the
-link is then the likely cause, and the link's own rules handle it.
+tolerance while the scale was saturated, or ran slow (still delivering, below freq_min) while
+the link carried the streams with margin: the scale's doing, not the link's. A return for the
+link (down, bandwidth, a weak link) is none, nor is a rate on a scale with room over a link
+that may not carry it (the link's own rules handle that), nor a silence on a scale with room
+(an instance that died with its agent, or a stalled link, says nothing of the scale's room).
 """
 from dataclasses import dataclass, replace
 import math
-from typing import Callable, Dict, FrozenSet, List, Mapping, Optional, Tuple
+from typing import AbstractSet, Callable, Dict, FrozenSet, List, Mapping, Optional, Tuple
 
 import numpy as np
 
@@ -108,9 +109,12 @@ class PlacementLearning:
         return frozenset(out)
 
     def left(self, i: int, k: int, now: float, assign: np.ndarray, state: DynamicState,
-             violating: Mapping[int, str]) -> Optional[Tuple[str, str]]:
-        """Node i was moved away from remote scale k (`assign`: the mapping it left). For a
-        failed placement: a few words for the move's reason and the back-off's log line."""
+             violating: Mapping[int, str],
+             slow_rate: AbstractSet[int] = frozenset()) -> Optional[Tuple[str, str]]:
+        """Node i was moved away from remote scale k (`assign`: the mapping it left;
+        `violating`: the nodes whose connections spent their tolerance, and why; `slow_rate`:
+        those of them still delivering, below freq_min). For a failed placement: a few words
+        for the move's reason and the back-off's log line."""
         key = (i, k)
         scale = self.ch.scale_names[k]
         load = self.load(i, k, assign, state, now)
@@ -122,7 +126,7 @@ class PlacementLearning:
             reason = f"{scale} CPU {load:.0f} % + {cost:.0f} % estimated for it"
         elif i in violating and busy >= SATURATED_PERCENT:
             reason = f"{violating[i]}, {scale} {busy:.0f} % busy"
-        elif i in violating and self.link_carries(assign, state):
+        elif i in slow_rate and self.link_carries(assign, state):
             reason = f"{violating[i]}, the link at {state.bandwidth_mbps:.0f} Mbit/s"
         else:
             reason = ""

@@ -52,6 +52,11 @@ MIGRATABLE = ("amcl", "ar_recognition")
 CRITICAL = ("odometry", "ekf", "navigation")
 AMCL_POSE_TOLERANCE_S = 2.0      # Table I
 ROBOT_CPU_CORES = 0.37           # the quota these timings were measured at; see above
+# Room for AMCL and AR both: on the laptop AR sees every camera frame and took 0.68-0.75 cores
+# (a lower bound, the laptop saturated) beside AMCL's 0.19. At the calibrated 0.9 cores AR came
+# home over capacity and, in one clean-clone CI run, was not out again before the weak phase;
+# a laptop too small is test_weak_laptop.py's case, this one is about the link.
+LAPTOP_CPU_CORES = 1.4
 
 
 @pytest.fixture(scope="module")
@@ -61,7 +66,8 @@ def run(tmp_path_factory, slow_host_argv, host_factor):
         [sys.executable, os.path.join(ROOT, "scripts", "run_testbed.py"), "--world",
          "small_loop", "--link", "schedule", "--schedule", SCHEDULE, "--duration",
          str(DURATION_S), "--loops", "2", "--hysteresis", str(HYSTERESIS_S),
-         "--robot-cpu", str(ROBOT_CPU_CORES), "--hold-after-loss", "0", "--out", str(out)]
+         "--robot-cpu", str(ROBOT_CPU_CORES), "--laptop-cpu", str(LAPTOP_CPU_CORES),
+         "--hold-after-loss", "0", "--out", str(out)]
         + slow_host_argv, capture_output=True, text=True, timeout=DURATION_S + 120 * host_factor)
     records = glob.glob(str(out / "*" / "record.json"))
     assert done.returncode == 0 and records, done.stdout[-3000:] + done.stderr[-3000:]

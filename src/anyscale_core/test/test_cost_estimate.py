@@ -198,3 +198,18 @@ def test_the_filter_ignores_a_report_seen_before():
     for _ in range(5):
         f.observe(1.0, 80.0, False)
     assert f.samples == 1 and f.value(1.0) == 36.0
+
+
+def test_a_hold_keeps_the_estimate_until_it_ends_and_relaxation_runs_from_there():
+    f = CostFilter(12.0, 0.0, 100.0)
+    for n in range(MEDIAN_OF):
+        f.observe(n * 0.5, 82.0, True)
+    left = (MEDIAN_OF - 1) * 0.5
+    f.hold(left + 10.0, left + 90.0)                 # sent back 10 s after its last sample
+    held = 12.0 + 70.0 * math.exp(-0.1)
+    assert f.value(left + 50.0) == pytest.approx(held)
+    assert f.value(left + 90.0) == pytest.approx(held)
+    assert f.value(left + 190.0) == pytest.approx(12.0 + (held - 12.0) / math.e)
+    f.observe(left + 200.0, 40.0, False)             # back there: what it believes then
+    assert f.measured == pytest.approx(12.0 + (held - 12.0) * math.exp(-1.1))
+    assert f.held == (math.inf, math.inf)

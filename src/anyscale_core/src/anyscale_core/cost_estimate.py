@@ -44,7 +44,10 @@ class CostFilter:
     whatever the report rate; a median of lower bounds (samples of a saturated scale) raises
     the estimate to itself at once and never lowers it. Not refreshed, the estimate relaxes
     toward the model's figure (time constant forget_s; 0: never): what a scale could give
-    some minutes ago says less and less about what it can give now."""
+    some minutes ago says less and less about what it can give now. A hold stops that until
+    its end: a move sent back is retried when its back-off ends, and forgetting then runs
+    from there, so that the wait grows with the back-off (held from the last sample, a lower
+    bound relaxes back to a fit after the same time however often the move failed)."""
 
     def __init__(self, model_percent: float, smoothing_s: float, forget_s: float):
         self.model = model_percent
@@ -55,13 +58,21 @@ class CostFilter:
         self.samples = 0
         self.lower_bound = False               # the latest median was of lower bounds
         self.window: deque = deque(maxlen=MEDIAN_OF)
+        self.held = (math.inf, math.inf)      # [from, until): the estimate does not relax
 
     def value(self, t: float) -> float:
         """The estimate at time t."""
         if self.samples == 0 or self.forget_s <= 0 or t <= self.last_t:
             return self.measured
-        return self.model + (self.measured - self.model) * \
-            math.exp(-(t - self.last_t) / self.forget_s)
+        start, end = self.held
+        unheld = (t - self.last_t) - max(0.0, min(t, end) - max(self.last_t, start))
+        return self.model + (self.measured - self.model) * math.exp(-unheld / self.forget_s)
+
+    def hold(self, t: float, until: float):
+        """From t, the estimate stays what it is at t until `until`, and relaxes from then."""
+        if self.samples and until > t:
+            self.measured, self.last_t = self.value(t), max(self.last_t, t)
+            self.held = (self.last_t, until)
 
     def observe(self, t: float, percent: float, lower_bound: bool):
         """A sample at time t (a repeated or older one changes nothing)."""
@@ -72,6 +83,7 @@ class CostFilter:
             self.measured = self.value(t)
             self.window.clear()
             dt = 0.0
+        self.held = (math.inf, math.inf)       # a sample there: the move is no longer held
         self.window.append((percent, lower_bound))
         self.last_t = t
         self.samples += 1
@@ -151,6 +163,12 @@ class CostEstimates:
             if shares:
                 return max(max(shares), MIN_RATE_SHARE)
         return 1.0
+
+    def hold(self, i: int, k: int, now: float, until: float):
+        """Node i's estimate on scale k stays as it is now until `until` (CostFilter.hold)."""
+        f = self.filters.get((i, k))
+        if f is not None:
+            f.hold(now, until)
 
     def live(self, i: int, k: int, now: float) -> float:
         f = self.filters.get((i, k))

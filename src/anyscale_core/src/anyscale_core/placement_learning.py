@@ -21,7 +21,7 @@ from .constraints import (CPU_CAPACITY_PERCENT, SATURATED_PERCENT, DynamicState,
                           required_bandwidth)
 from .cost_estimate import CostEstimates, CostRow
 from .decision_types import DecisionParams, ScaleReport
-from .placement_backoff import PlacementBackoff, PlacementBackoffParams, describe
+from .placement_backoff import Backoff, PlacementBackoff, PlacementBackoffParams, describe
 
 
 # A link with this many times the bandwidth of the streams that cross it, and this share of
@@ -133,11 +133,20 @@ class PlacementLearning:
         if not reason:
             self.backoff.left(key)
             return None
-        b = self.backoff.failed(key, now, load, load + cost <= CPU_CAPACITY_PERCENT, reason)
+        b = self.failed(key, now, load, load + cost <= CPU_CAPACITY_PERCENT, reason)
         if b is None:
             return None
         return (f"backed off {b.delay_s:g} s",
                 describe(self.ch.node_names[i], scale, b, self.learning.retry_room))
+
+    def failed(self, key: Tuple[int, int], now: float, load: float, fitted: bool,
+               reason: str) -> Optional[Backoff]:
+        """Backs the move off; its cost estimate is held as learned until the back-off ends,
+        so that forgetting does not bring the move back before it (CostFilter.hold)."""
+        b = self.backoff.failed(key, now, load, fitted, reason)
+        if b is not None:
+            self.costs.hold(*key, now, b.until)
+        return b
 
     def link_carries(self, assign: np.ndarray, state: DynamicState) -> bool:
         """The link is not a slow rate's cause: its bandwidth is LINK_MARGIN x what crosses it
@@ -167,7 +176,7 @@ class PlacementLearning:
             load = max(self.load(j, k, assign, state, now), CPU_CAPACITY_PERCENT - cpu_free)
             short = f"{cost:.0f} % > {cpu_free:.0f} % free" if cost > cpu_free + 1e-9 else \
                 f"{memory:.0f} MB > {memory_free:.0f} MB free"
-            b = self.backoff.failed((j, k), now, load, True, f"{scale} full: {short}")
+            b = self.failed((j, k), now, load, True, f"{scale} full: {short}")
             if b is not None:
                 lines.append(describe(self.ch.node_names[j], scale, b, self.learning.retry_room,
                                       refused=j == i))

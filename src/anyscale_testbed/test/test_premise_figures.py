@@ -44,6 +44,16 @@ def test_rate_speed_and_gap_per_configuration():
     assert laptop["mean_speed"] == pytest.approx(0.4, abs=0.01)
 
 
+def test_the_longest_gap_is_between_poses_not_to_a_spans_edge():
+    # The start-up cut at 30 s falls 1.8 s before the first pose after it, and the run ends
+    # 2.7 s after the last pose: neither is a silence between poses (1.0 s here).
+    poses = [28.0] + [31.8 + i for i in range(40)]
+    rec = TestbedRecord(mappings=[(0.0, ROBOT, 0.0, 0.0)], receipts={"/amcl_pose": poses},
+                        truth=straight_line([((0, 73.5), 0.2)]), finished_t=73.5)
+    row = premise_figures(rec, skip_s=30.0)[0]
+    assert row["amcl_longest_gap_s"] == pytest.approx(1.0)
+
+
 def test_short_spans_and_start_up_are_left_out():
     rec = TestbedRecord(mappings=[(0.0, ROBOT, 0, 0), (50.0, LAPTOP, 0, 0), (55.0, ROBOT, 0, 0)],
                         receipts={"/amcl_pose": [float(t) for t in range(100)]},

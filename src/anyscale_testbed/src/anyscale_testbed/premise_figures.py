@@ -63,7 +63,7 @@ def longest_gap_after(receipts: List[float], skip_s: float) -> float:
 
 def premise_figures(rec: TestbedRecord, skip_s: float) -> List[dict]:
     """Per configuration, after skip_s of start-up: seconds spent, AMCL's rate and longest
-    silence, mean and cruise speed. Spans shorter than two speed windows are left out (a
+    interval between two of its poses within one span, mean and cruise speed. Spans shorter than two speed windows are left out (a
     move's own seconds say nothing of the configuration)."""
     end = rec.finished_t if rec.finished_t is not None else max(
         [t for t, _, _ in rec.truth] or [0.0])
@@ -80,7 +80,10 @@ def premise_figures(rec: TestbedRecord, skip_s: float) -> List[dict]:
         inside = poses[(poses >= a) & (poses < b)]
         s["seconds"] += b - a
         s["poses"] += len(inside)
-        s["gap"] = max(s["gap"], float(np.max(np.diff(np.concatenate(([a], inside, [b]))))))
+        if len(inside) >= 2:
+            # Between poses only: a span's edges are the start-up cut, a move or the run's end,
+            # and the silence up to one of those belongs to it, not to the configuration.
+            s["gap"] = max(s["gap"], float(np.diff(inside).max()))
         s["dist"] += path_length(truth[(truth[:, 0] >= a) & (truth[:, 0] < b)])
         s["windows"] += speeds_over_windows(truth, a, b)
     return [{"configuration": name, "seconds": s["seconds"],

@@ -23,6 +23,13 @@ than the baseline did (102 % of its gain). The recorded bandwidth is a function 
 (coverage, shadowing along the path) and of the time (interference episodes): the bound keeps
 each episode where this run met it. evaluation_table states its gain against the baseline;
 evaluation_shortfall.py splits what a test left of it by cause.
+
+The share of the bound's gain at the run's own speeds (own_speed_share) needs no baseline: the
+same steps with AMCL home throughout (every driving step with AMCL out at the speed with AMCL
+home) give the time the run would have taken without a move, and the share is what the run
+saved against that over what the bound saves. A baseline run is another run, on a shared host
+whose speed drifts within the hour (AMCL 1.86 Hz at home in one baseline, 1.33 Hz in the test
+after it): a share against it reads that drift as well as the allocator.
 """
 from dataclasses import dataclass, field
 import math
@@ -78,9 +85,20 @@ class CoverageBound:
     home_mps: float             # driving speed with AMCL on the robot (measured, or SLOW_MPS)
     out_mps: float              # driving speed with AMCL out (measured, or FAST_MPS)
     time_s: float               # the time to complete with AMCL out wherever the link carried it
+    taken_s: float              # the time the run took
+    home_time_s: float          # the time to complete with AMCL home throughout
 
 
-NO_BOUND = CoverageBound(math.nan, math.nan, math.nan, math.nan, math.nan)
+NO_BOUND = CoverageBound(math.nan, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan)
+
+
+def own_speed_share(bound: CoverageBound) -> float:
+    """The share of the bound's gain the run reached, at its own speeds (see the module
+    docstring); NaN where the bound has nothing to gain or a figure is missing."""
+    reachable = bound.home_time_s - bound.time_s
+    if not (math.isfinite(reachable) and reachable > 0 and math.isfinite(bound.taken_s)):
+        return math.nan
+    return (bound.home_time_s - bound.taken_s) / reachable
 
 
 def coverage_bound(rec: TestbedRecord, amcl_mbps: float, master: str = "robot",
@@ -94,13 +112,15 @@ def coverage_bound(rec: TestbedRecord, amcl_mbps: float, master: str = "robot",
     taken = path_time(rec) if window is None else window[1] - window[0]
     total = float(steps.length.sum())
     if not total > 0:
-        return CoverageBound(0.0, math.nan, math.nan, math.nan, taken)
-    out_but_not_carried = steps.driving & ~steps.carried & steps.out
-    lost = float(np.sum(steps.length[out_but_not_carried] / steps.home_mps
-                        - steps.dt[out_but_not_carried]))
+        return CoverageBound(0.0, math.nan, math.nan, math.nan, taken, taken, taken)
+
+    def at_home_speed(where):
+        return float(np.sum(steps.length[where] / steps.home_mps - steps.dt[where]))
+    lost = at_home_speed(steps.driving & ~steps.carried & steps.out)
     return CoverageBound(total, float(steps.length[steps.carried].sum() / total),
                          steps.home_mps, steps.out_mps,
-                         taken - float(steps.saved_by_moving_out().sum()) + lost)
+                         taken - float(steps.saved_by_moving_out().sum()) + lost, taken,
+                         taken + at_home_speed(steps.driving & steps.out))
 
 
 def mean_abs_omega_deg_s(rec: TestbedRecord) -> float:

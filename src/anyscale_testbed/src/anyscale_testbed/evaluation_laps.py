@@ -1,9 +1,9 @@
 """Lap by lap, the evaluation's figures of a run that drove its loop more than once
 (run_evaluation.py --laps N): the decision node's link map learns on lap 1 what lap 2 can use.
 Per lap: the time, the coverage bound over the lap (evaluation_figures.coverage_bound) and the
-share of its gain reached against the baseline's same lap, the returns by kind (after a link
-loss, planned before a hole, other), the worst output gap per kind of move, and the silences
-longer than Δ. Pure (no ROS)."""
+share of its gain reached, at the lap's own speeds and against the baseline's same lap, the
+returns by kind (after a link loss, planned before a hole, other), the worst output gap per
+kind of move, and the silences longer than Δ. Pure (no ROS)."""
 import csv
 from dataclasses import dataclass, field
 import math
@@ -11,7 +11,7 @@ import os
 import re
 from typing import Dict, List, Optional, Sequence, Tuple
 
-from .evaluation_figures import coverage_bound
+from .evaluation_figures import NO_BOUND, CoverageBound, coverage_bound, own_speed_share
 from .testbed_figures import move_figures
 from .testbed_record import (LINK_AHEAD_RETURN, LINK_LOSS_RETURN, MOVE_KINDS, OTHER_RETURN,
                              TestbedRecord, kind_of_move)
@@ -43,6 +43,7 @@ class LapFigures:
     lap: int
     time_s: float                   # NaN: not completed
     bound_time_s: float             # the coverage bound over the lap
+    bound: CoverageBound = NO_BOUND
     returns: Dict[str, int] = field(default_factory=dict)        # kind -> count, every node
     amcl_returns: Dict[str, int] = field(default_factory=dict)   # kind -> count, AMCL's
     worst_gap_s: Dict[str, float] = field(default_factory=dict)  # move kind -> longest gap
@@ -62,9 +63,8 @@ def lap_figures(rec: TestbedRecord, laps: int, amcl_mbps: float,
         done = math.isfinite(end)
         stop = end if done else math.inf
         inside = [e for e in rec.events if start <= e.decided_t < stop]
-        f = LapFigures(lap, end - start if done else math.nan,
-                       coverage_bound(rec, amcl_mbps, master, (start, end)).time_s
-                       if done else math.nan)
+        bound = coverage_bound(rec, amcl_mbps, master, (start, end)) if done else NO_BOUND
+        f = LapFigures(lap, end - start if done else math.nan, bound.time_s, bound)
         for kind in RETURN_KINDS:
             f.returns[kind] = sum(kind_of_move(e) == kind for e in inside)
             f.amcl_returns[kind] = sum(kind_of_move(e) == kind and e.node == "amcl"
@@ -118,7 +118,8 @@ def _baseline_lap(baselines, pair: int, lap: int) -> float:
     return sum(times) / len(times) if times else math.nan
 
 
-HEADER = ["run", "lap", "time", "baseline lap", "bound", "share of bound's gain",
+HEADER = ["run", "lap", "time", "baseline lap", "bound", "share of bound's gain at own speeds",
+          "share of bound's gain",
           "link-loss returns (AMCL)", "planned returns before a hole (AMCL)",
           "other returns (AMCL)"] + [f"worst gap: {k}" for k in MOVE_KINDS] + ["violations"]
 
@@ -128,9 +129,11 @@ def _cells(row: LapRow) -> List[str]:
 
     def s(v, digits=0):
         return f"{v:.{digits}f} s" if math.isfinite(v) else "-"
-    share = lap_share(f, row.baseline_s)
+
+    def percent(v):
+        return f"{100 * v:.0f} %" if math.isfinite(v) else "-"
     return ([row.run, str(f.lap), s(f.time_s), s(row.baseline_s), s(f.bound_time_s),
-             f"{100 * share:.0f} %" if math.isfinite(share) else "-"]
+             percent(own_speed_share(f.bound)), percent(lap_share(f, row.baseline_s))]
             + [f"{f.returns[k]} ({f.amcl_returns[k]})" for k in RETURN_KINDS]
             + [s(f.worst_gap_s[k], 2) for k in MOVE_KINDS] + [str(f.violations)])
 
@@ -154,14 +157,14 @@ def write_laps_csv(path: str, rows: Sequence[LapRow]):
     with open(path, "w", newline="") as out:
         w = csv.writer(out)
         w.writerow(["run", "lap", "time_s", "baseline_lap_s", "bound_time_s",
-                    "share_of_bound_gain"]
+                    "share_of_bound_gain", "share_of_bound_gain_own_speeds"]
                    + [f"returns {k}" for k in RETURN_KINDS]
                    + [f"amcl_returns {k}" for k in RETURN_KINDS]
                    + [f"worst_gap_s {k}" for k in MOVE_KINDS] + ["violations"])
         for r in rows:
             f = r.figures
             w.writerow([r.run, f.lap, n(f.time_s), n(r.baseline_s), n(f.bound_time_s),
-                        n(lap_share(f, r.baseline_s))]
+                        n(lap_share(f, r.baseline_s)), n(own_speed_share(f.bound))]
                        + [f.returns[k] for k in RETURN_KINDS]
                        + [f.amcl_returns[k] for k in RETURN_KINDS]
                        + [n(f.worst_gap_s[k]) for k in MOVE_KINDS] + [f.violations])

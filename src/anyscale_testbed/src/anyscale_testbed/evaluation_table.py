@@ -15,7 +15,7 @@ from typing import Dict, List, Optional, Sequence
 
 import numpy as np
 
-from .evaluation_figures import CONFIGURATIONS, RunFigures
+from .evaluation_figures import CONFIGURATIONS, RunFigures, own_speed_share
 from .evaluation_shortfall import CAUSES
 from .premise_figures import premise_is_off, premise_off_note
 from .tolerance_report import silence_cell, topics_of
@@ -147,7 +147,8 @@ def _fixed(v: float, unit: str, digits: int = 1) -> str:
 
 def header(topics: Sequence[str]) -> List[str]:
     return (["run", "exit", "time to complete", "gain vs baseline", "gain vs paired baseline",
-             "coverage bound", "share of bound's gain", "share of bound's gain vs paired",
+             "coverage bound", "share of bound's gain at own speeds", "share of bound's gain",
+             "share of bound's gain vs paired",
              "AMCL at home", "cruise at home", "mean |w|", "|w| / baseline",
              "turning per m / baseline", "markers", "AMCL RMS error"]
             + [f"{t} longest/Δ" for t in topics]
@@ -163,6 +164,7 @@ def run_cells(f: RunFigures, baseline: Optional[Baseline], topics: Sequence[str]
              if has_bound and math.isfinite(f.bound.time_s) else "-")
     return ([f.name, str(f.row.exit_code), _fixed(f.row.path_time_s, " s", 0),
              _percent(gain(f, baseline)), _percent(paired_gain(f, figures)), bound,
+             _percent(own_speed_share(f.bound)) if has_bound else "-",
              _percent(bound_share(f, baseline)) if has_bound else "-",
              _percent(paired_bound_share(f, figures)) if has_bound else "-",
              _fixed(f.amcl_hz_home, " Hz", 2), _fixed(f.cruise_mps_home, " m/s", 2),
@@ -204,6 +206,7 @@ def mean_cells(kind: str, runs: Sequence[RunFigures], baseline: Optional[Baselin
              _spread_cell(paired_gain_spread(runs, figures)),
              f"{_fixed(_nanmean([f.bound.time_s for f in runs]), ' s', 0)} "
              f"({_percent(_nanmean([bound_gain(f, baseline) for f in runs]))})",
+             _percent(_nanmean([own_speed_share(f.bound) for f in runs])),
              _percent(_nanmean([bound_share(f, baseline) for f in runs])),
              _percent(_nanmean([paired_bound_share(f, figures) for f in runs])),
              _fixed(_nanmean([f.amcl_hz_home for f in runs]), " Hz", 2),
@@ -262,6 +265,8 @@ def paper_comparison(figures: Sequence[RunFigures]) -> List[str]:
         f"best case (the network everywhere): paper {_percent(PAPER_BEST_CASE_GAIN)}; here "
         f"{_percent(gain(best, baseline)) if best else '-'}",
         f"share of the coverage bound's gain reached: here "
+        f"{_percent(_nanmean([own_speed_share(f.bound) for f in tests]))} at each test's own "
+        f"speeds; against the baselines "
         f"{_percent(_nanmean([bound_share(f, baseline) for f in tests]))}, against the paired "
         f"baselines {_percent(_nanmean([paired_bound_share(f, figures) for f in tests]))} (the "
         f"paper has no bound)",
@@ -331,6 +336,7 @@ def write_csv(path: str, figures: Sequence[RunFigures]):
         w.writerow(["run", "kind", "seed", "pair", "exit_code", "time_to_complete_s",
                     "gain_vs_baseline", "gain_vs_paired_baseline", "bound_time_s", "bound_gain",
                     "share_of_bound_gain", "bound_gain_vs_paired", "share_of_bound_gain_vs_paired",
+                    "home_time_s", "share_of_bound_gain_own_speeds",
                     "driving_mps_amcl_home", "driving_mps_amcl_out",
                     "amcl_hz_every_node_home", "cruise_mps_every_node_home", "premise_off",
                     "mean_abs_omega_deg_s", "omega_ratio_to_baseline", "turning_deg_per_m",
@@ -347,6 +353,7 @@ def write_csv(path: str, figures: Sequence[RunFigures]):
                         _number(gain(f, paired)), _number(f.bound.time_s),
                         _number(bound_gain(f, baseline)), _number(bound_share(f, baseline)),
                         _number(bound_gain(f, paired)), _number(bound_share(f, paired)),
+                        _number(f.bound.home_time_s), _number(own_speed_share(f.bound)),
                         _number(f.bound.home_mps), _number(f.bound.out_mps),
                         _number(f.amcl_hz_home), _number(f.cruise_mps_home),
                         "" if not math.isfinite(f.amcl_hz_home) else

@@ -63,8 +63,9 @@ def longest_gap_after(receipts: List[float], skip_s: float) -> float:
 
 def premise_figures(rec: TestbedRecord, skip_s: float) -> List[dict]:
     """Per configuration, after skip_s of start-up: seconds spent, AMCL's rate and longest
-    interval between two of its poses within one span, mean and cruise speed. Spans shorter than two speed windows are left out (a
-    move's own seconds say nothing of the configuration)."""
+    interval between two of its poses within one span, mean and cruise speed. Spans shorter
+    than two speed windows are left out (a move's own seconds say nothing of the
+    configuration)."""
     end = rec.finished_t if rec.finished_t is not None else max(
         [t for t, _, _ in rec.truth] or [0.0])
     if end <= skip_s:
